@@ -1,0 +1,26 @@
+"""jaxskid: closed-form rigid-body equations of motion, derived in SymPy and lowered to JAX."""
+
+from ._errors import JaxskidError, ModelError, RequestError, ShapeError
+from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
+from ._model import Frame, Joint, Robot, spatial_to_body, symbol
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Frame",
+    "JaxskidError",
+    "Joint",
+    "ModelError",
+    "RequestError",
+    "Robot",
+    "ShapeError",
+    "pose",
+    "pose_xyzrpy",
+    "rot_axis_angle",
+    "rot_quaternion",
+    "rot_rpy",
+    "screw",
+    "spatial_inertia",
+    "spatial_to_body",
+    "symbol",
+]

@@ -1,0 +1,51 @@
+"""Exceptions raised by jaxskid.
+
+Every error a user can cause by what they feed in is a :class:`JaxskidError`. Its message names where the
+problem is (file and key path, when known) and what was expected, so that it reads well as one line.
+"""
+
+from __future__ import annotations
+
+
+class JaxskidError(Exception):
+    """Base class of all errors jaxskid raises on purpose."""
+
+
+class ModelError(JaxskidError, ValueError):
+    """A robot description is malformed or violates an invariant.
+
+    ``where`` is the key path inside the description (``"mass_inertia[2].inertia"``); ``source`` is the
+    file it came from, if any. ``str(err)`` reads ``"robot.yaml: mass_inertia[2].inertia: expected ..."``.
+    """
+
+    def __init__(self, message: str, *, where: str | None = None, source: str | None = None):
+        self.message = message
+        self.where = where
+        self.source = source
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        parts = [p for p in (self.source, self.where) if p]
+        return ": ".join([*parts, self.message])
+
+    def located(self, *, source: str | None = None, prefix: str | None = None) -> "ModelError":
+        """The same error, with a file name and/or an outer key path added."""
+        where = self.where
+        if prefix:
+            where = f"{prefix}.{where}" if where and not where.startswith("[") else f"{prefix}{where or ''}"
+        return ModelError(self.message, where=where, source=source or self.source)
+
+    def __reduce__(self):  # keep pickling (multiprocessing, pytest-xdist) working with keyword fields
+        return (_rebuild_model_error, (self.message, self.where, self.source))
+
+
+def _rebuild_model_error(message, where, source):
+    return ModelError(message, where=where, source=source)
+
+
+class RequestError(JaxskidError, ValueError):
+    """A request names a quantity, parameter or argument that the lowered model does not have."""
+
+
+class ShapeError(JaxskidError, ValueError):
+    """An argument passed to a generated function has the wrong shape or size."""
