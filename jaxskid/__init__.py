@@ -3,10 +3,22 @@
 from ._errors import JaxskidError, ModelError, RequestError, ShapeError
 from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from ._model import Frame, Joint, Robot, spatial_to_body, symbol
+from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, derive
+from ._lower import cache_dir
+from ._dynamics import Dynamics
+from ._api import load, lower
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "DEFAULT_QUANTITIES",
+    "Dynamics",
+    "Equations",
+    "QUANTITIES",
+    "cache_dir",
+    "derive",
+    "load",
+    "lower",
     "Frame",
     "JaxskidError",
     "Joint",

@@ -1,0 +1,281 @@
+"""Named equations: which quantities exist, their arguments and shapes, and how each is derived.
+
+:func:`derive` builds only the requested quantities on one shared :class:`~jaxskid._symbolic.Tape`, so
+quantities requested together share their intermediates. The result, :class:`Equations`, is what the
+lowering stage (JAX) and the code generators (C, Julia, ...) print.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from ._errors import RequestError
+from ._model import Robot
+from ._symbolic import Kinematics, Tape
+
+log = logging.getLogger("jaxskid")
+
+
+@dataclass(frozen=True)
+class Argument:
+    """An input of the generated functions: its name, shape and the flat symbols standing for it."""
+
+    name: str
+    shape: tuple[int, ...]
+    symbols: tuple[sp.Symbol, ...]
+    doc: str
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """One derived quantity: ``name(*args, params) -> array of shape``, entries row-major in outputs."""
+
+    name: str
+    args: tuple[str, ...]
+    shape: tuple[int, ...]
+    outputs: tuple[sp.Expr, ...]
+    equation: str
+    doc: str
+
+
+@dataclass(frozen=True)
+class QuantitySpec:
+    """How to derive a quantity: arguments, shape and a builder over :class:`Kinematics`."""
+
+    name: str
+    args: tuple[str, ...]
+    shape: Callable[[Robot], tuple[int, ...]]
+    build: Callable[[Kinematics], list]
+    equation: str
+    doc: str
+    needs_end_effector: bool = False
+
+
+QUANTITIES: dict[str, QuantitySpec] = {}
+"""Every quantity jaxskid can derive, by name."""
+
+DEFAULT_QUANTITIES = (
+    "mass_matrix",
+    "coriolis_matrix",
+    "coriolis_torques",
+    "gravity_torques",
+    "inverse_dynamics",
+    "forward_kinematics",
+)
+
+
+def register(spec: QuantitySpec) -> QuantitySpec:
+    QUANTITIES[spec.name] = spec
+    return spec
+
+
+def _flat(rows) -> list:
+    out = []
+    for r in rows:
+        if isinstance(r, (list, tuple)):
+            out.extend(_flat(r))
+        else:
+            out.append(r)
+    return out
+
+
+def _pose_entries(r, p) -> list:
+    return [r[0][0], r[0][1], r[0][2], p[0], r[1][0], r[1][1], r[1][2], p[1], r[2][0], r[2][1], r[2][2], p[2], 0, 0, 0, 1]
+
+
+def _frame_jacobians(kin: Kinematics, hybrid: bool) -> list:
+    out = []
+    for name in kin.robot.end_effectors:
+        cols = kin.frame_jacobian(name)
+        if hybrid:
+            r, _ = kin.frame_pose(name)
+            cols = [hybridize(kin, r, c) for c in cols]
+        out.append([[cols[j][k] for j in range(kin.n)] for k in range(6)])
+    return _flat(out)
+
+
+def hybridize(kin: Kinematics, r, v) -> list:
+    """Body-fixed 6-vector -> hybrid (frame origin, world axes): ``(R w, R v)``."""
+    if all(e == 0 for e in v):
+        return [sp.Integer(0)] * 6
+    rw = [sum((r[a][b] * v[b] for b in range(3)), sp.Integer(0)) for a in range(3)]
+    rv = [sum((r[a][b] * v[3 + b] for b in range(3)), sp.Integer(0)) for a in range(3)]
+    return kin.tape.vec([*rw, *rv])
+
+
+def _ext(kin: Kinematics) -> list:
+    w = kin.wrench_symbols
+    return kin.external_torques({name: list(w[e]) for e, name in enumerate(kin.robot.end_effectors)})
+
+
+register(QuantitySpec(
+    "mass_matrix", ("q",), lambda r: (r.n_dof, r.n_dof),
+    lambda k: _flat(k.mass_matrix().tolist()),
+    "M(q) = J^T diag(M_i) J", "Joint-space mass (inertia) matrix, symmetric positive definite.",
+))
+register(QuantitySpec(
+    "coriolis_matrix", ("q", "qd"), lambda r: (r.n_dof, r.n_dof),
+    lambda k: _flat(k.coriolis_matrix().tolist()),
+    "C(q, qd) = J^T (diag(M_i) dJ/dt + B(V) J)",
+    "Coriolis/centrifugal matrix; C qd are the Coriolis forces and dM/dt - 2C is skew-symmetric.",
+))
+register(QuantitySpec(
+    "coriolis_torques", ("q", "qd"), lambda r: (r.n_dof,),
+    lambda k: k.rnea(velocity=True, accel=False, gravity=False),
+    "C(q, qd) qd", "Coriolis and centrifugal generalized forces (recursive Newton-Euler).",
+))
+register(QuantitySpec(
+    "gravity_torques", ("q",), lambda r: (r.n_dof,),
+    lambda k: k.rnea(velocity=False, accel=False, gravity=True),
+    "Q_grav(q)", "Generalized gravity forces: the torques that hold the robot still.",
+))
+register(QuantitySpec(
+    "inverse_dynamics", ("q", "qd", "qdd"), lambda r: (r.n_dof,),
+    lambda k: k.rnea(velocity=True, accel=True, gravity=True),
+    "tau = M(q) qdd + C(q, qd) qd + Q_grav(q)",
+    "Joint forces for a motion (recursive Newton-Euler); add external_torques for end-effector loads.",
+))
+register(QuantitySpec(
+    "external_torques", ("q", "wrench"), lambda r: (r.n_dof,),
+    _ext,
+    "Q_ext = sum_e J_e(q)^T W_e",
+    "Generalized forces of end-effector wrenches W_e (moment, force) in each end-effector's frame; "
+    "W_e is what the end-effector exerts on its environment, so tau = M qdd + C qd + Q_grav + Q_ext.",
+    needs_end_effector=True,
+))
+register(QuantitySpec(
+    "forward_kinematics", ("q",), lambda r: (len(r.frame_names), 4, 4),
+    lambda k: _flat([_pose_entries(*k.frame_pose(name)) for name in k.robot.frame_names]),
+    "C_f(q) = C_body(q) T_f", "World pose of every named frame (bodies, merged links, end-effectors).",
+))
+register(QuantitySpec(
+    "body_jacobian", ("q",), lambda r: (len(r.end_effectors), 6, r.n_dof),
+    lambda k: _frame_jacobians(k, hybrid=False),
+    "V_e = J_e(q) qd, body-fixed", "Body Jacobian of each end-effector: twist (omega, v) in its own frame.",
+    needs_end_effector=True,
+))
+register(QuantitySpec(
+    "hybrid_jacobian", ("q",), lambda r: (len(r.end_effectors), 6, r.n_dof),
+    lambda k: _frame_jacobians(k, hybrid=True),
+    "V_e^h = J_e^h(q) qd", "Hybrid Jacobian of each end-effector: (omega, velocity of the origin) in world axes.",
+    needs_end_effector=True,
+))
+
+
+@dataclass(frozen=True)
+class Equations:
+    """The requested quantities of one robot as a shared straight-line program.
+
+    ``assignments`` are ``(symbol, expression)`` pairs in dependency order; each quantity's outputs are
+    expressions of these symbols, of the argument symbols and of the parameter symbols.
+    """
+
+    robot: Robot
+    parameters: tuple[str, ...]
+    param_symbols: tuple[sp.Symbol, ...]
+    arguments: dict[str, Argument]
+    quantities: dict[str, Quantity]
+    assignments: tuple[tuple[sp.Symbol, sp.Expr], ...]
+    _index: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def program(self, names: Iterable[str]) -> list[tuple[sp.Symbol, sp.Expr]]:
+        """The assignments that the named quantities need, in order."""
+        if not self._index:
+            self._index.update({s: k for k, (s, _) in enumerate(self.assignments)})
+        need: set[int] = set()
+        stack = []
+        for n in names:
+            for e in self.quantities[n].outputs:
+                stack.extend(sp.sympify(e).free_symbols)
+        while stack:
+            s = stack.pop()
+            k = self._index.get(s)
+            if k is None or k in need:
+                continue
+            need.add(k)
+            stack.extend(self.assignments[k][1].free_symbols)
+        return [self.assignments[k] for k in sorted(need)]
+
+    def operation_count(self, names: Iterable[str]) -> int:
+        names = list(names)
+        ops = sum(sp.count_ops(e) for _, e in self.program(names))
+        return ops + sum(sp.count_ops(e) for n in names for e in self.quantities[n].outputs)
+
+
+def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, ...]:
+    """Validate a request and return the quantity names in a canonical order."""
+    if quantities is None:
+        names = [q for q in DEFAULT_QUANTITIES]
+    elif quantities == "all":
+        names = list(QUANTITIES)
+    elif isinstance(quantities, str):
+        names = [quantities]
+    else:
+        names = list(quantities)
+    unknown = [q for q in names if q not in QUANTITIES]
+    if unknown:
+        raise RequestError(
+            f"unknown quantity {', '.join(map(repr, unknown))}; available: {', '.join(sorted(QUANTITIES))}"
+        )
+    if not robot.end_effectors:
+        if quantities is None or quantities == "all":
+            names = [q for q in names if not QUANTITIES[q].needs_end_effector]
+        else:
+            bad = [q for q in names if QUANTITIES[q].needs_end_effector]
+            if bad:
+                raise RequestError(f"{', '.join(bad)} need an end-effector, and robot {robot.name!r} has none")
+    order = list(QUANTITIES)
+    return tuple(sorted(dict.fromkeys(names), key=order.index))
+
+
+def derive(robot: Robot, quantities: Sequence[str] | str | None = None, *, progress: bool = False) -> Equations:
+    """Derive the requested quantities of ``robot`` in closed form (nothing else is derived)."""
+    names = resolve(robot, quantities)
+    kin = Kinematics(robot, Tape())
+    n = robot.n_dof
+    n_ee = len(robot.end_effectors)
+    wrench = tuple(sp.Symbol(f"_w{e}_{k}", real=True) for e in range(n_ee) for k in range(6))
+    kin.wrench_symbols = [wrench[6 * e: 6 * e + 6] for e in range(n_ee)]
+    arguments = {
+        k: Argument(k, (n,), tuple(kin.state[k]), doc)
+        for k, doc in (
+            ("q", "joint positions"),
+            ("qd", "joint velocities"),
+            ("qdd", "joint accelerations"),
+            ("q3d", "joint jerks"),
+            ("q4d", "joint jounces"),
+        )
+    }
+    arguments["wrench"] = Argument("wrench", (n_ee, 6), wrench, "end-effector wrenches (moment, force)")
+    quantities: dict[str, Quantity] = {}
+    bar = _progress(names, progress)
+    for name in bar:
+        spec = QUANTITIES[name]
+        outs = spec.build(kin)
+        shape = spec.shape(robot)
+        size = 1
+        for d in shape:
+            size *= d
+        if len(outs) != size:
+            raise AssertionError(f"{name}: built {len(outs)} entries for shape {shape}")
+        quantities[name] = Quantity(name, spec.args, shape, tuple(sp.sympify(e) for e in outs), spec.equation, spec.doc)
+    return Equations(
+        robot=robot,
+        parameters=robot.parameters,
+        param_symbols=tuple(kin.params),
+        arguments=arguments,
+        quantities=quantities,
+        assignments=tuple(kin.tape.defs.items()),
+    )
+
+
+def _progress(names, enabled):
+    if not enabled:
+        return names
+    from tqdm.auto import tqdm
+
+    return tqdm(names, desc="derive", unit="quantity", leave=False)

@@ -1,0 +1,219 @@
+"""Lowering: print :class:`~jaxskid._equations.Equations` as a JAX module, cache it on disk, load it.
+
+This is the only stage that knows both SymPy and JAX. The generated module has one pure function per
+quantity, ``name(*state, p) -> array``, for a single state; batching is ``jax.vmap``'s job.
+
+Output form. XLA on CPU compiles a function whose result is assembled by ``jnp.stack`` or
+``jnp.array([...])`` into one slow kernel, and a tuple of outputs into separate kernels that each redo the
+shared work. A chain of ``jnp.where(index == k, value_k, out)`` on a constant index lets XLA fuse the
+whole computation into one loop fusion that writes every output (measured in ``benchmarks/``), so every
+generated function builds its result that way.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import re
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import sympy as sp
+from sympy.printing.numpy import JaxPrinter
+
+from ._equations import Equations, derive, resolve
+from ._model import Robot
+
+log = logging.getLogger("jaxskid")
+
+GENERATOR_VERSION = "1"
+_CHECK_PREFIX = "# jaxskid-checksum: "
+
+
+class _Printer(JaxPrinter):
+    """JAX printer tuned for float32/float64 parity and XLA: no general powers for small integer
+    exponents, rationals and floats as plain Python literals (weakly typed, so they take the inputs'
+    dtype)."""
+
+    def __init__(self):
+        super().__init__({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
+
+    def _print_Float(self, expr):
+        return repr(float(expr))
+
+    def _print_Rational(self, expr):
+        return repr(float(expr))
+
+    def _print_Integer(self, expr):
+        return repr(float(int(expr)))
+
+    def _print_Pow(self, expr, rational=False):
+        base, exp = expr.args
+        if exp.is_Integer and 0 < abs(int(exp)) <= 8:
+            b = self.parenthesize(base, sp.printing.precedence.PRECEDENCE["Mul"] + 1)
+            prod = "*".join([b] * abs(int(exp)))
+            return prod if exp > 0 else f"1.0/({prod})"
+        if exp == sp.Rational(1, 2):
+            return f"{self._module}.sqrt({self._print(base)})"
+        if exp == -sp.Rational(1, 2):
+            return f"1.0/{self._module}.sqrt({self._print(base)})"
+        return super()._print_Pow(expr, rational=rational)
+
+
+def _index_expr(arg: str, shape: tuple[int, ...], k: int) -> str:
+    if len(shape) == 1:
+        return f"{arg}[{k}]"
+    idx = []
+    for d in reversed(shape):
+        idx.append(k % d)
+        k //= d
+    return f"{arg}[{', '.join(str(i) for i in reversed(idx))}]"
+
+
+def function_source(eqs: Equations, name: str, printer: _Printer | None = None) -> str:
+    """Source of ``def name(*args, p)`` for one quantity (see the module docstring for the form)."""
+    printer = printer or _Printer()
+    qty = eqs.quantities[name]
+    prog = eqs.program([name])
+    rename = {s: sp.Symbol(f"_p{k}", real=True) for k, s in enumerate(eqs.param_symbols)}
+    used: set = set()
+    for _, e in prog:
+        used |= e.free_symbols
+    for e in qty.outputs:
+        used |= sp.sympify(e).free_symbols
+    args = [*qty.args, "p"]
+    lines = [f"def {name}({', '.join(args)}):", f'    """{qty.equation}: {qty.doc}"""']
+    for a in qty.args:
+        arg = eqs.arguments[a]
+        for k, s in enumerate(arg.symbols):
+            if s in used:
+                lines.append(f"    {s.name} = {_index_expr(a, arg.shape, k)}")
+    for k, s in enumerate(eqs.param_symbols):
+        if s in used:
+            lines.append(f"    _p{k} = p[{k}]")
+    for s, e in prog:
+        lines.append(f"    {s.name} = {printer.doprint(e.xreplace(rename))}")
+    size = len(qty.outputs)
+    lead = qty.args[0]
+    lines.append(f"    _out = jnp.zeros(({size},), jnp.result_type({lead}, p))")
+    lines.append(f"    _i = jnp.arange({size})")
+    for k, e in enumerate(qty.outputs):
+        e = sp.sympify(e)
+        if e == 0:
+            continue
+        lines.append(f"    _out = jnp.where(_i == {k}, {printer.doprint(e.xreplace(rename))}, _out)")
+    lines.append(f"    return _out.reshape({tuple(qty.shape)!r})")
+    return "\n".join(lines) + "\n"
+
+
+def module_source(eqs: Equations, names: Sequence[str], key: str) -> str:
+    """A complete generated module for the named quantities, with metadata and a checksum."""
+    robot = eqs.robot
+    meta = {
+        "robot": robot.name,
+        "key": key,
+        "joint_names": list(robot.joint_names),
+        "frame_names": list(robot.frame_names),
+        "end_effectors": list(robot.end_effectors),
+        "parameters": list(eqs.parameters),
+        "defaults": robot.default_params(),
+        "quantities": {
+            n: {"args": list(eqs.quantities[n].args), "shape": list(eqs.quantities[n].shape),
+                "equation": eqs.quantities[n].equation, "doc": eqs.quantities[n].doc}
+            for n in names
+        },
+    }
+    header = [
+        f"# Generated by jaxskid (generator {GENERATOR_VERSION}) for robot {robot.name!r}.",
+        f"# Quantities: {', '.join(names)}.",
+        "# Each function takes the state arrays named in its signature, shape (n,), and p, the parameter",
+        "# vector in the order of METADATA['parameters']; it returns one array. Batch with jax.vmap.",
+        "import jax",
+        "import jax.numpy as jnp",
+        "",
+        f"METADATA = {json.dumps(meta, sort_keys=True)}",
+        "",
+    ]
+    printer = _Printer()
+    body = "\n\n".join(function_source(eqs, n, printer) for n in names)
+    text = "\n".join(header) + "\n" + body
+    return text + _CHECK_PREFIX + hashlib.sha256(text.encode()).hexdigest() + "\n"
+
+
+def cache_dir() -> Path:
+    """Where generated modules are cached: ``$JAXSKID_CACHE_DIR``, else ``~/.cache/jaxskid``."""
+    env = os.environ.get("JAXSKID_CACHE_DIR")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "jaxskid"
+
+
+def request_key(robot: Robot, names: Sequence[str]) -> str:
+    h = hashlib.sha256()
+    h.update(GENERATOR_VERSION.encode())
+    h.update(robot.fingerprint().encode())
+    h.update(repr(tuple(names)).encode())
+    return h.hexdigest()
+
+
+def _load_source(text: str, origin: str) -> dict:
+    body, sep, tail = text.rpartition(_CHECK_PREFIX)
+    if not sep or tail.strip() != hashlib.sha256(body.encode()).hexdigest():
+        raise ValueError("checksum mismatch")
+    namespace: dict = {"__name__": f"jaxskid_generated_{Path(origin).stem.replace('-', '_')}"}
+    exec(compile(text, origin, "exec"), namespace)  # noqa: S102 - our own generated, checksummed code
+    return namespace
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)  # atomic: concurrent writers of the same entry each leave a whole file
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def generate_module(
+    robot: Robot,
+    quantities: Sequence[str] | str | None = None,
+    *,
+    cache: bool = True,
+    directory: Path | str | None = None,
+    progress: bool = False,
+) -> tuple[dict, str, Path | None]:
+    """Derive (or fetch from the cache) and load the JAX module of the requested quantities.
+
+    Returns ``(namespace, source, path)``. A cached entry that is truncated, corrupted or stale is
+    regenerated.
+    """
+    names = resolve(robot, quantities)
+    key = request_key(robot, names)
+    stem = re.sub(r"[^A-Za-z0-9_]+", "_", robot.name)[:40] or "robot"
+    path = Path(directory or cache_dir()) / f"{stem}-{key[:20]}.py" if cache else None
+    if path is not None and path.exists():
+        try:
+            text = path.read_text()
+            ns = _load_source(text, str(path))
+            if ns["METADATA"]["key"] == key:
+                log.debug("jaxskid: loaded %s from the cache", path)
+                return ns, text, path
+        except Exception as exc:  # corrupted entry: fall through and regenerate
+            log.warning("jaxskid: cache entry %s is unreadable (%s); regenerating", path, exc)
+    eqs = derive(robot, names, progress=progress)
+    text = module_source(eqs, names, key)
+    ns = _load_source(text, str(path) if path else "<jaxskid>")
+    if path is not None:
+        try:
+            _write_atomic(path, text)
+        except OSError as exc:
+            log.warning("jaxskid: could not write the cache entry %s (%s)", path, exc)
+    return ns, text, path
