@@ -7,6 +7,7 @@ from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, derive
 from ._lower import cache_dir
 from ._dynamics import Dynamics
 from ._api import load, lower
+from ._urdf import read_urdf
 
 __version__ = "0.1.0"
 
@@ -27,6 +28,7 @@ __all__ = [
     "Robot",
     "ShapeError",
     "pose",
+    "read_urdf",
     "pose_xyzrpy",
     "rot_axis_angle",
     "rot_quaternion",

@@ -163,7 +163,8 @@ def transform_inertia(m6: sp.Matrix, c: sp.Matrix) -> Matrix:
     ``M_F = Ad(C^-1)^T M Ad(C^-1)``.
     """
     a = adjoint(inverse(c))
-    return Matrix(a.T * sp.Matrix(m6) * a)
+    out = a.T * sp.Matrix(m6) * a
+    return Matrix((out + out.T) / 2)
 
 
 def standard_parameters(m6: sp.Matrix) -> tuple:

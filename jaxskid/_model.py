@@ -177,7 +177,10 @@ class Robot:
         return self.link_names + tuple(f.name for f in self.frames)
 
     def frame(self, name: str) -> Frame:
-        """The frame ``name`` as (body index, offset); bodies are frames at their own origin."""
+        """The frame ``name`` as (body index, offset); bodies are frames at their own origin, and the
+        base (world) link is the frame at the world origin."""
+        if name == self.base:
+            return Frame(name, -1, sp.ImmutableMatrix(sp.eye(4)))
         for i, j in enumerate(self.joints):
             if j.link == name:
                 return Frame(name, i, sp.ImmutableMatrix(sp.eye(4)))
@@ -224,7 +227,12 @@ class Robot:
 
     # ------------------------------------------------------------------ derived models
     def lock(self, values: Mapping[str, float]) -> "Robot":
-        """A new robot with the named joints fixed at the given positions."""
+        """A new robot with the named joints fixed at the given positions.
+
+        The locked body's inertia is added to its parent's. With per-link symbolic inertias the merged
+        body then carries both links' symbols; for identification, lock while reading
+        (``jaxskid.load(path, lock=...)``) so that each moving body keeps 10 parameters.
+        """
         names = set(self.joint_names)
         unknown = [k for k in values if k not in names]
         if unknown:
@@ -404,6 +412,7 @@ def _merge_fixed(joints: list[Joint], frames: list[Frame]) -> tuple[list[Joint],
         p = j.parent
         if p >= 0 and any(e != 0 for e in j.inertia):
             moved = lie.transform_inertia(j.inertia, t)
+            moved = (moved + moved.T) / 2  # exact symmetry despite float round-off
             joints[p] = replace(joints[p], inertia=sp.ImmutableMatrix((joints[p].inertia + moved).applyfunc(_tidy)))
         for k in range(i + 1, len(joints)):
             if joints[k].parent == i:
@@ -460,7 +469,12 @@ def _check_joint(j: Joint, i: int, numeric: Mapping) -> None:
     m6 = j.inertia
     for r in range(6):
         for c in range(r + 1, 6):
-            if sp.simplify(m6[r, c] - m6[c, r]) != 0:
+            a, b = m6[r, c], m6[c, r]
+            if a.is_Number and b.is_Number:
+                asym = abs(float(a) - float(b)) > 1e-12 * max(1.0, abs(float(a)))
+            else:
+                asym = sp.expand(a - b) != 0
+            if asym:
                 raise ModelError(f"expected a symmetric 6x6 mass-inertia matrix (entry {r},{c})", where=f"{where}.inertia")
     _check_inertia_numeric(m6, numeric, f"{where}.inertia")
 

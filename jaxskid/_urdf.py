@@ -1,0 +1,431 @@
+"""Read a fixed-base robot from a URDF file (https://wiki.ros.org/urdf/XML) into a :class:`Robot`.
+
+The file is parsed strictly with lxml and checked here, so that every problem is reported as a
+:class:`ModelError` that names the file, the key path (``joint[name=j2].axis``) and what was expected;
+the numbers are then read through yourdfpy (without loading meshes).
+
+Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/parsers/urdf``):
+
+* the root link is welded to the world; its inertia is dropped and its name is ``Robot.base``;
+* the frame of a child link is its joint's frame, ``B_i = origin(xyz, rpy)`` with
+  ``R = Rz(yaw) Ry(pitch) Rx(roll)``; the screw is ``(a, 0)`` (revolute, continuous) or ``(0, a)``
+  (prismatic), ``a`` the joint axis normalised to unit length;
+* the order of ``q`` is a depth-first walk from the root in which the joints leaving a link are taken in
+  the order of their names, as urdfdom stores them (a ``std::map``); fixed joints are walked through;
+* fixed and locked links are welded to their parent body: their inertia is added to it (in float64, here)
+  and they stay reachable as :class:`Frame` s (:meth:`Robot.create`); with ``symbolic_inertia`` the 10
+  parameters describe the merged body;
+* a link without ``<inertial>`` is massless;
+* a ``<mimic>`` joint is read as an independent joint, as Pinocchio does by default (``mimic=False``);
+  a warning is logged, and locking it removes it.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import math
+import os
+import re
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from . import _lie as lie
+from ._errors import ModelError
+from ._model import Joint, Robot, symbol
+
+_logger = logging.getLogger(__name__)
+
+_JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed"}
+_SUPPORTED = ", ".join(_JOINT_TYPES)
+_INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def read_urdf(
+    path: str | os.PathLike,
+    *,
+    lock: Mapping[str, float] | None = None,
+    symbolic_inertia: bool = True,
+    gravity: Sequence = (0, 0, -9.81),
+    end_effectors: Sequence[str] | None = None,
+) -> Robot:
+    """Build a :class:`Robot` from the URDF file ``path``.
+
+    Args:
+        path: the ``.urdf`` file (already expanded: no xacro).
+        lock: joint name -> position; those joints are fixed there and their links merged into the parent.
+        symbolic_inertia: if True, the 6x6 inertia of every moving body is written with its 10 standard
+            parameters ``{link}_m, {link}_mcx, {link}_mcy, {link}_mcz, {link}_Ixx, {link}_Ixy, {link}_Iyy,
+            {link}_Ixz, {link}_Iyz, {link}_Izz`` (about the body frame's origin, Pinocchio's
+            ``toDynamicParameters`` order; ``link`` made a valid identifier), with the URDF values (after
+            fixed and locked links are merged in) as defaults. If False, inertias are numbers.
+        gravity: gravitational acceleration in the world (root link) frame.
+        end_effectors: link names marked as end-effectors; default: the leaf links of the tree.
+
+    Returns:
+        the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints not locked.
+
+    Raises:
+        ModelError: ``"<path>: <key path>: expected ..., got ..."`` for an unreadable or malformed file,
+            an unsupported joint (floating, planar), a link tree that is not a tree with one root, or
+            invalid inertial values.
+    """
+    source = os.fspath(path)
+    try:
+        return _read(source, lock, symbolic_inertia, gravity, end_effectors)
+    except ModelError as err:
+        raise err.located(source=source) from None
+
+
+def _read(source, lock, symbolic_inertia, gravity, end_effectors) -> Robot:
+    data = _read_bytes(source)
+    _check_document(_parse_xml(data))
+    urdf = _load_yourdfpy(data).robot
+    order, root_link = _walk_tree(urdf.links, urdf.joints)
+    links = {link.name: link for link in urdf.links}
+    locked = _check_lock(lock, order)
+    end_effectors = _check_end_effectors(end_effectors, links, root_link, order)
+
+    body = {root_link: -1}
+    parent, kind, origin, screw, inertia = [], [], [], [], []
+    for k, j in enumerate(order):
+        body[j.child] = k
+        parent.append(body[j.parent])
+        kind.append(_JOINT_TYPES[j.type])
+        screw.append(_screw(kind[k], j.axis))
+        origin.append(_pose(j.origin))
+        inertia.append(_inertia(links[j.child].inertial))
+        if j.name in locked:  # as Robot.lock: B <- B exp(X q)
+            origin[k] = sp.ImmutableMatrix(origin[k] * lie.screw_exp(screw[k], _exact(locked[j.name])))
+            kind[k], screw[k] = "fixed", (0,) * 6
+        elif j.mimic is not None:
+            _logger.warning(
+                "%s: joint[name=%s].mimic: read as an independent joint (its coupling to %r is dropped)",
+                source, j.name, j.mimic.joint,
+            )
+
+    # Weld fixed (and locked) links into their parent body here, in float64, children before parents, so
+    # that Robot.create only re-attaches frames: its exact symmetry check rejects the round-off that
+    # merging numeric inertias symbolically (transform_inertia on Floats) leaves behind.
+    for k in reversed(range(len(order))):
+        if kind[k] == "fixed":
+            if parent[k] >= 0:
+                moved = np.array(lie.transform_inertia(sp.Matrix(inertia[k]), origin[k]), dtype=float)
+                inertia[parent[k]] = inertia[parent[k]] + 0.5 * (moved + moved.T)
+            inertia[k] = np.zeros((6, 6))
+
+    joints, defaults, owner = [], {}, {}
+    for k, j in enumerate(order):
+        m6 = sp.ImmutableMatrix(6, 6, [_exact(x) for x in inertia[k].flat])
+        if symbolic_inertia and kind[k] != "fixed":
+            names = _parameter_names(j.child, owner)
+            defaults.update({n: float(v) for n, v in zip(names, lie.standard_parameters(m6))})
+            m6 = _inertia_from_parameters(*(symbol(n) for n in names))
+        joints.append(Joint(j.name, kind[k], parent[k], origin[k], screw[k], m6, j.child))
+    return Robot.create(urdf.name, joints, gravity, end_effectors=end_effectors, defaults=defaults, base=root_link)
+
+
+def _check_lock(lock, order) -> dict[str, float]:
+    moving = [j.name for j in order if j.type != "fixed"]
+    out = {}
+    for name, value in (lock or {}).items():
+        if name not in moving:
+            raise ModelError(
+                f"expected the name of a revolute, continuous or prismatic joint, got {name!r}; "
+                f"joints are {', '.join(moving)}",
+                where="lock",
+            )
+        try:
+            out[name] = float(value)
+        except (TypeError, ValueError):
+            out[name] = math.nan
+        if not math.isfinite(out[name]):
+            raise ModelError(f"expected a finite number, got {value!r}", where=f"lock.{name}")
+    return out
+
+
+def _check_end_effectors(end_effectors, links, root_link, order) -> tuple[str, ...]:
+    if end_effectors is None:  # the leaf links, in the order of the walk
+        parents = {j.parent for j in order}
+        return tuple(name for name in [root_link, *(j.child for j in order)] if name not in parents)
+    end_effectors = (end_effectors,) if isinstance(end_effectors, str) else tuple(end_effectors)
+    unknown = [e for e in end_effectors if e not in links]
+    if unknown:
+        raise ModelError(
+            f"expected link names, got {', '.join(map(repr, unknown))}; links are {', '.join(links)}",
+            where="end_effectors",
+        )
+    return end_effectors
+
+
+# ---------------------------------------------------------------------------------------------- reading
+
+
+def _read_bytes(source: str) -> bytes:
+    try:
+        with open(source, "rb") as fh:
+            data = fh.read()
+    except FileNotFoundError:
+        raise ModelError("expected an existing URDF file, got no such file") from None
+    except IsADirectoryError:
+        raise ModelError("expected a URDF file, got a directory") from None
+    except OSError as exc:
+        raise ModelError(f"expected a readable URDF file, got {exc.strerror or exc}") from None
+    if not data.strip():
+        raise ModelError("expected a URDF (XML) document, got an empty file")
+    if b"\x00" in data and not data.startswith((b"\xff\xfe", b"\xfe\xff")):  # NUL bytes, no UTF-16 mark
+        raise ModelError("expected a URDF (XML) text file, got binary data")
+    return data
+
+
+def _parse_xml(data: bytes):
+    from lxml import etree
+
+    parser = etree.XMLParser(remove_blank_text=True, resolve_entities=False, no_network=True)
+    try:
+        root = etree.fromstring(data, parser)
+    except etree.XMLSyntaxError as exc:
+        raise ModelError(f"expected well-formed XML, got a syntax error at line {exc.lineno}: {exc.msg}") from None
+    except ValueError as exc:  # e.g. an undecodable encoding declaration
+        raise ModelError(f"expected well-formed XML, got {exc}") from None
+    tag = etree.QName(root).localname if isinstance(root.tag, str) else str(root.tag)
+    if tag != "robot":
+        raise ModelError(f"expected the root element <robot>, got <{tag}>", where="robot")
+    return root
+
+
+def _load_yourdfpy(data: bytes):
+    import yourdfpy
+
+    try:
+        return yourdfpy.URDF.load(
+            io.BytesIO(data),
+            build_scene_graph=False,
+            build_collision_scene_graph=False,
+            load_meshes=False,
+            load_collision_meshes=False,
+        )
+    except Exception as exc:  # noqa: BLE001 - yourdfpy raises bare KeyError/ValueError/... on what we do not check
+        raise ModelError(f"expected a URDF that yourdfpy can read, got {type(exc).__name__}: {exc}",
+                         where="robot") from None
+
+
+# ---------------------------------------------------------------------------------------------- checking
+
+
+def _check_document(root) -> None:
+    """Everything yourdfpy would accept silently, misread, or fail on with a bare exception."""
+    if not root.get("name"):
+        raise ModelError("expected a non-empty name attribute", where="robot.name")
+    links = root.findall("link")
+    if not links:
+        raise ModelError("expected at least one <link>", where="robot")
+    link_names: set[str] = set()
+    for k, el in enumerate(links):
+        name = el.get("name")
+        if not name:
+            raise ModelError("expected a non-empty name attribute", where=f"link[{k}].name")
+        if name in link_names:
+            raise ModelError(f"expected unique link names, got {name!r} twice", where=f"link[name={name}].name")
+        link_names.add(name)
+        inertial = el.find("inertial")
+        if inertial is not None:
+            _check_inertial(inertial, f"link[name={name}].inertial")
+
+    joint_names: set[str] = set()
+    mimics = []
+    for k, el in enumerate(root.findall("joint")):
+        name = el.get("name")
+        if not name:
+            raise ModelError("expected a non-empty name attribute", where=f"joint[{k}].name")
+        where = f"joint[name={name}]"
+        if name in joint_names:
+            raise ModelError(f"expected unique joint names, got {name!r} twice", where=f"{where}.name")
+        joint_names.add(name)
+        kind = el.get("type")
+        if kind not in _JOINT_TYPES:
+            if kind in ("floating", "planar"):
+                got = f"unsupported type {kind!r} (only fixed-base trees: the root link is welded to the world)"
+            else:
+                got = "no type" if kind is None else f"unknown type {kind!r}"
+            raise ModelError(f"expected one of {_SUPPORTED}, got {got}", where=f"{where}.type")
+        for tag in ("parent", "child"):
+            sub = el.find(tag)
+            link = None if sub is None else sub.get("link")
+            if not link:
+                raise ModelError(f'expected a <{tag} link="..."/> element', where=f"{where}.{tag}")
+            if link not in link_names:
+                raise ModelError(f"expected the name of a link, got {link!r}", where=f"{where}.{tag}")
+        _check_origin(el.find("origin"), f"{where}.origin")
+        axis = el.find("axis")
+        if axis is not None and kind != "fixed":
+            a = _floats(axis.get("xyz", "1 0 0"), 3, f"{where}.axis")
+            if not any(a):
+                raise ModelError(f"expected a non-zero axis, got {axis.get('xyz')!r}", where=f"{where}.axis")
+        mimic = el.find("mimic")
+        if mimic is not None:
+            for attr in ("multiplier", "offset"):
+                if mimic.get(attr) is not None:
+                    _floats(mimic.get(attr), 1, f"{where}.mimic.{attr}")
+            mimics.append((where, mimic.get("joint")))
+    for where, target in mimics:
+        if target not in joint_names:
+            raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
+
+
+def _check_inertial(el, where: str) -> None:
+    _check_origin(el.find("origin"), f"{where}.origin")
+    mass = el.find("mass")
+    if mass is None:
+        raise ModelError('expected a <mass value="..."/> element', where=f"{where}.mass")
+    (m,) = _floats(mass.get("value"), 1, f"{where}.mass")
+    if m < 0:
+        raise ModelError(f"expected a non-negative mass, got {m:g}", where=f"{where}.mass")
+    inertia = el.find("inertia")
+    if inertia is None:
+        raise ModelError(
+            'expected an <inertia ixx="..." ixy="..." ixz="..." iyy="..." iyz="..." izz="..."/> element',
+            where=f"{where}.inertia",
+        )
+    ixx, ixy, ixz, iyy, iyz, izz = (_floats(inertia.get(k), 1, f"{where}.inertia.{k}")[0] for k in _INERTIA_KEYS)
+    ic = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    ev = np.linalg.eigvalsh(ic)
+    if ev.min() < -1e-9 * max(1.0, float(np.abs(ic).max())):  # the tolerance of Robot.create
+        raise ModelError(
+            f"expected a positive semi-definite inertia about the centre of mass, got eigenvalues "
+            f"{np.round(ev, 12).tolist()}",
+            where=f"{where}.inertia",
+        )
+
+
+def _check_origin(el, where: str) -> None:
+    if el is None:
+        return
+    for attr in ("xyz", "rpy"):
+        if el.get(attr) is not None:
+            _floats(el.get(attr), 3, f"{where}.{attr}")
+
+
+def _floats(text: str | None, n: int, where: str) -> list[float]:
+    what = "a number" if n == 1 else f"{n} numbers"
+    if text is None:
+        raise ModelError(f"expected {what}, got nothing", where=where)
+    parts = text.split()
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = None
+    if values is None or len(values) != n:
+        raise ModelError(f"expected {what}, got {text!r}", where=where)
+    if not all(math.isfinite(v) for v in values):
+        raise ModelError(f"expected {'a finite number' if n == 1 else 'finite numbers'}, got {text!r}", where=where)
+    return values
+
+
+def _walk_tree(links, joints) -> tuple[list, str]:
+    """The joints in depth-first order from the single root link, children in the order of their names."""
+    parent_joint: dict = {}
+    for j in joints:
+        if j.child in parent_joint:
+            raise ModelError(
+                f"expected each link to have one parent joint, got link {j.child!r} also the child of joint "
+                f"{parent_joint[j.child].name!r}",
+                where=f"joint[name={j.name}].child",
+            )
+        parent_joint[j.child] = j
+    roots = [link.name for link in links if link.name not in parent_joint]
+    if len(roots) > 1:
+        raise ModelError(
+            f"expected exactly one root link (a link that is no joint's child), got {len(roots)}: {', '.join(roots)}",
+            where="robot",
+        )
+    children: dict[str, list] = {}
+    for j in joints:
+        children.setdefault(j.parent, []).append(j)
+    for c in children.values():
+        c.sort(key=lambda j: j.name.encode())  # std::string order, as urdfdom's std::map
+    order: list = []
+    if roots:
+        stack = list(reversed(children.get(roots[0], [])))
+        while stack:
+            j = stack.pop()
+            order.append(j)
+            stack.extend(reversed(children.get(j.child, [])))
+    if len(order) < len(joints):  # a link whose parent chain never reaches the root lies on a cycle
+        reached = {j.name for j in order}
+        link = next(j.child for j in joints if j.name not in reached)
+        chain: list[str] = []
+        while link not in chain:
+            chain.append(link)
+            link = parent_joint[link].parent
+        cycle = [parent_joint[x].name for x in chain[chain.index(link):]]
+        raise ModelError(
+            f"expected a tree, got a cycle of joints {' -> '.join([*reversed(cycle), cycle[-1]])}",
+            where=f"joint[name={cycle[-1]}]",
+        )
+    return order, roots[0]
+
+
+# ---------------------------------------------------------------------------------------------- numbers
+
+
+def _exact(x) -> sp.Expr:
+    x = float(x)
+    return sp.Integer(int(x)) if x.is_integer() else sp.Float(x)
+
+
+def _rotation_translation(pose) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (round-off next to -1, 0, 1 snapped, so that right angles stay exact) and translation."""
+    c = np.eye(4) if pose is None else np.asarray(pose, dtype=float)
+    r = c[:3, :3]
+    snapped = np.round(r)
+    r = np.where(np.abs(r - snapped) < 1e-14, snapped, r)
+    return r, c[:3, 3]
+
+
+def _pose(pose) -> sp.ImmutableMatrix:
+    r, p = _rotation_translation(pose)
+    return lie.pose(sp.Matrix(3, 3, [_exact(x) for x in r.flat]), [_exact(x) for x in p])
+
+
+def _screw(kind: str, axis) -> tuple:
+    if kind == "fixed":
+        return (0,) * 6
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)  # the file's axis need not be unit, as in urdfdom and Pinocchio
+    return lie.screw(kind, [_exact(x) for x in a])
+
+
+def _inertia(inertial) -> np.ndarray:
+    """The link's 6x6 mass-inertia in its own frame: the inertia about the centre of mass is rotated from
+    the <inertial> frame into the link frame, then moved to the link origin (parallel-axis theorem)."""
+    if inertial is None:  # URDF allows a link without <inertial>: massless, as in Pinocchio
+        return np.zeros((6, 6))
+    r, c = _rotation_translation(inertial.origin)
+    ic = r @ np.asarray(inertial.inertia, dtype=float) @ r.T
+    m6 = np.array(lie.spatial_inertia(float(inertial.mass or 0.0), c.tolist(), sp.Matrix(ic)), dtype=float)
+    return 0.5 * (m6 + m6.T)  # float round-off in the products breaks exact symmetry
+
+
+def _inertia_from_parameters(m, mcx, mcy, mcz, ixx, ixy, iyy, ixz, iyz, izz) -> sp.ImmutableMatrix:
+    """Inverse of :func:`_lie.standard_parameters`: ``[[I_o, (mc)~], [-(mc)~, m 1]]``."""
+    io = sp.Matrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    mc = lie.skew([mcx, mcy, mcz])
+    return sp.ImmutableMatrix(io.row_join(mc).col_join((-mc).row_join(m * sp.eye(3))))
+
+
+def _parameter_names(link: str, owner: dict[str, str]) -> list[str]:
+    """``{link}_m, ..., {link}_Izz`` with ``link`` made a valid (ASCII) identifier; ``owner`` maps the
+    prefixes already used to their links."""
+    prefix = re.sub(r"[^0-9A-Za-z_]", "_", link)
+    prefix = f"_{prefix}" if prefix[:1].isdigit() else prefix
+    if prefix in owner:
+        raise ModelError(
+            f"expected link names that stay distinct as identifiers, got {owner[prefix]!r} and {link!r} "
+            f"(both give parameters {prefix}_m, {prefix}_mcx, ...)",
+            where=f"link[name={link}].name",
+        )
+    owner[prefix] = link
+    return [f"{prefix}_{k}" for k in lie.STANDARD_PARAMETER_NAMES]
