@@ -173,8 +173,8 @@ class Robot:
 
     @property
     def frame_names(self) -> tuple[str, ...]:
-        """Every named frame: the bodies, then merged links and end-effectors."""
-        return self.link_names + tuple(f.name for f in self.frames)
+        """Every named frame: the base (world) link, the bodies, then merged links and end-effectors."""
+        return (self.base, *self.link_names, *(f.name for f in self.frames))
 
     def frame(self, name: str) -> Frame:
         """The frame ``name`` as (body index, offset); bodies are frames at their own origin, and the

@@ -1,0 +1,232 @@
+"""The core pipeline against Pinocchio: M, C qd, C, Q_grav, tau and link poses on real robots and random trees."""
+
+from __future__ import annotations
+
+import numpy as np
+import jax
+import jax.numpy as jnp
+import pinocchio as pin
+import pytest
+
+import jaxskid
+from pinref import to_pinocchio
+from randrobot import random_robot
+
+ERD = __import__("pathlib").Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
+URDFS = {
+    "panda": ERD / "panda_description/urdf/panda.urdf",
+    "ur5": ERD / "ur_description/urdf/ur5_robot.urdf",
+    "solo12": ERD / "solo_description/robots/solo12.urdf",
+    "double_pendulum": ERD / "double_pendulum_description/urdf/double_pendulum.urdf",
+}
+FINGERS = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+QUANTITIES = ["mass_matrix", "coriolis_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics", "forward_kinematics"]
+N_STATES = 200
+TOL = 1e-9
+
+
+def rel_err(a, b) -> float:
+    a, b = np.asarray(a), np.asarray(b)
+    return float(np.linalg.norm((a - b).ravel()) / max(1e-300, np.linalg.norm(b.ravel())))
+
+
+def pinocchio_model(name: str):
+    model = pin.buildModelFromUrdf(str(URDFS["panda" if name == "panda7" else name]))
+    if name == "panda7":
+        locked = [model.getJointId(j) for j in FINGERS]
+        model = pin.buildReducedModel(model, locked, pin.neutral(model))
+    return model
+
+
+def jaxskid_robot(name: str):
+    if name == "panda7":
+        return jaxskid.load(URDFS["panda"], lock=FINGERS)
+    return jaxskid.load(URDFS[name])
+
+
+def references(model, q, qd, qdd):
+    data = model.createData()
+    out = {k: [] for k in ("M", "C", "Cqd", "g", "tau", "poses")}
+    for a, b, c in zip(q, qd, qdd):
+        m = pin.crba(model, data, a)
+        out["M"].append(np.triu(m) + np.triu(m, 1).T)
+        out["C"].append(pin.computeCoriolisMatrix(model, data, a, b).copy())
+        g = pin.computeGeneralizedGravity(model, data, a).copy()
+        out["g"].append(g)
+        out["Cqd"].append(pin.nonLinearEffects(model, data, a, b) - g)
+        out["tau"].append(pin.rnea(model, data, a, b, c).copy())
+        pin.framesForwardKinematics(model, data, a)
+        out["poses"].append({f.name: data.oMf[k].homogeneous.copy() for k, f in enumerate(model.frames)})
+    return out
+
+
+@pytest.fixture(scope="module", params=["panda", "panda7", "ur5", "solo12", "double_pendulum"])
+def real_robot(request):
+    robot = jaxskid_robot(request.param)
+    model = pinocchio_model(request.param)
+    dyn = jaxskid.lower(robot, QUANTITIES)
+    return request.param, robot, model, dyn
+
+
+def test_joint_order_matches_pinocchio(real_robot):
+    _, robot, model, _ = real_robot
+    assert robot.joint_names == tuple(model.names[1:])
+
+
+def test_dynamics_match_pinocchio(real_robot):
+    name, robot, model, dyn = real_robot
+    rng = np.random.default_rng(7)
+    n = robot.n_dof
+    lo = np.where(np.isfinite(model.lowerPositionLimit), model.lowerPositionLimit, -np.pi)
+    hi = np.where(np.isfinite(model.upperPositionLimit), model.upperPositionLimit, np.pi)
+    q = rng.uniform(lo, hi, size=(N_STATES, n))
+    qd, qdd = rng.normal(size=(2, N_STATES, n)) * 2.0
+    ref = references(model, q, qd, qdd)
+    got = {
+        "M": dyn.mass_matrix(q),
+        "C": dyn.coriolis_matrix(q, qd),
+        "Cqd": dyn.coriolis_torques(q, qd),
+        "g": dyn.gravity_torques(q),
+        "tau": dyn.inverse_dynamics(q, qd, qdd),
+    }
+    for key, value in got.items():
+        errs = [rel_err(value[k], ref[key][k]) for k in range(N_STATES) if np.linalg.norm(ref[key][k]) > 1e-12]
+        assert max(errs) <= TOL, f"{name} {key}: relative error {max(errs):.3g}"
+    poses = dyn.forward_kinematics(q)
+    assert set(robot.link_names) <= set(poses)
+    checked = 0
+    for frame, values in poses.items():
+        if frame not in ref["poses"][0]:
+            continue  # an end-effector frame of our own
+        for k in range(N_STATES):
+            assert np.abs(np.asarray(values[k]) - ref["poses"][k][frame]).max() <= TOL, (name, frame)
+        checked += 1
+    urdf_links = {f.name for f in model.frames if f.type == pin.FrameType.BODY}
+    assert urdf_links <= set(poses), f"links missing from forward_kinematics: {urdf_links - set(poses)}"
+    assert checked >= len(urdf_links)
+
+
+def test_mass_matrix_spd_and_skew_property(real_robot):
+    name, robot, _, dyn = real_robot
+    if name == "panda":
+        return  # the 7-DOF arm (panda7) covers it; jvp of the 9-DOF M is the slowest compile in the suite
+    rng = np.random.default_rng(3)
+    q, qd = rng.uniform(-np.pi, np.pi, size=(2, 64, robot.n_dof))
+    m = np.asarray(dyn.mass_matrix(q))
+    np.testing.assert_allclose(m, np.swapaxes(m, 1, 2), atol=1e-12)
+    assert np.linalg.eigvalsh(m).min() > 0
+    mdot = jax.vmap(lambda a, b: jax.jvp(lambda x: dyn.mass_matrix(x), (a,), (b,))[1])(jnp.asarray(q), jnp.asarray(qd))
+    s = np.asarray(mdot) - 2 * np.asarray(dyn.coriolis_matrix(q, qd))
+    assert np.abs(s + np.swapaxes(s, 1, 2)).max() <= 1e-9 * max(1.0, np.abs(s).max())
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_trees_match_pinocchio(seed):
+    rng = np.random.default_rng(100 + seed)
+    n = int(rng.integers(1, 7))
+    robot = random_robot(rng, n, tree=seed % 2 == 0)
+    model, frames = to_pinocchio(robot, robot.default_params())
+    data = model.createData()
+    dyn = jaxskid.lower(robot, QUANTITIES)
+    q, qd, qdd = rng.normal(size=(3, 20, n))
+    m = dyn.mass_matrix(q)
+    c = dyn.coriolis_matrix(q, qd)
+    tau = dyn.inverse_dynamics(q, qd, qdd)
+    g = dyn.gravity_torques(q)
+    poses = dyn.forward_kinematics(q)
+    for k in range(20):
+        mp = pin.crba(model, data, q[k])
+        assert rel_err(m[k], np.triu(mp) + np.triu(mp, 1).T) <= TOL
+        assert rel_err(c[k], pin.computeCoriolisMatrix(model, data, q[k], qd[k])) <= TOL
+        assert rel_err(tau[k], pin.rnea(model, data, q[k], qd[k], qdd[k])) <= TOL
+        assert rel_err(g[k], pin.computeGeneralizedGravity(model, data, q[k])) <= TOL
+        pin.framesForwardKinematics(model, data, q[k])
+        for f in frames:
+            assert np.abs(np.asarray(poses[f][k]) - data.oMf[model.getFrameId(f)].homogeneous).max() <= TOL
+
+
+@pytest.fixture(scope="module")
+def panda_tau():
+    robot = jaxskid.load(URDFS["panda"], lock=FINGERS)
+    return robot, jaxskid.lower(robot, ["inverse_dynamics"])
+
+
+def test_grad_wrt_inertial_parameters_matches_finite_differences(panda_tau):
+    robot, dyn = panda_tau
+    assert len(dyn.parameters) == 10 * robot.n_dof
+    rng = np.random.default_rng(0)
+    q, qd, qdd = (jnp.asarray(rng.normal(size=(32, 7))) for _ in range(3))
+    params = {k: jnp.asarray(v) for k, v in robot.default_params().items()}
+    target = dyn.inverse_dynamics(q, qd, qdd, params) + jnp.asarray(rng.normal(size=(32, 7)))
+
+    def loss(p):
+        return jnp.sum((dyn.inverse_dynamics(q, qd, qdd, p) - target) ** 2)
+
+    grad = jax.grad(loss)(params)
+    assert all(np.isfinite(float(v)) for v in grad.values())
+    for name in dyn.parameters:
+        h = 1e-6 * max(1.0, abs(float(params[name])))
+        up = dict(params, **{name: params[name] + h})
+        dn = dict(params, **{name: params[name] - h})
+        fd = (float(loss(up)) - float(loss(dn))) / (2 * h)
+        assert abs(float(grad[name]) - fd) <= 1e-6 * max(1.0, abs(fd)), name
+
+
+def test_vmap_over_1024_states_matches_unbatched(panda_tau):
+    robot, dyn = panda_tau
+    rng = np.random.default_rng(1)
+    q, qd, qdd = (jnp.asarray(rng.normal(size=(1024, 7))) for _ in range(3))
+    p = dyn.param_vector()
+    batched = jax.vmap(dyn.inverse_dynamics, in_axes=(0, 0, 0, None))(q, qd, qdd, p)
+    single = np.stack([np.asarray(dyn.inverse_dynamics(q[k], qd[k], qdd[k], p)) for k in range(0, 1024, 97)])
+    np.testing.assert_allclose(np.asarray(batched)[::97], single, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(dyn.inverse_dynamics(q, qd, qdd)), np.asarray(batched), rtol=1e-13, atol=1e-12)
+
+
+def test_float32_and_float64(panda_tau):
+    robot, dyn = panda_tau
+    rng = np.random.default_rng(2)
+    q, qd, qdd = rng.normal(size=(3, 64, 7))
+    t64 = dyn.inverse_dynamics(q, qd, qdd)
+    t32 = dyn.inverse_dynamics(q.astype(np.float32), qd.astype(np.float32), qdd.astype(np.float32))
+    assert t64.dtype == jnp.float64 and t32.dtype == jnp.float32
+    assert rel_err(t32, t64) < 1e-5
+
+
+def test_jvp_through_generated_functions(panda_tau):
+    robot, dyn = panda_tau
+    rng = np.random.default_rng(4)
+    q, qd, qdd, dq = (jnp.asarray(rng.normal(size=7)) for _ in range(4))
+    _, tangent = jax.jvp(lambda x: dyn.inverse_dynamics(x, qd, qdd), (q,), (dq,))
+    h = 1e-6
+    fd = (dyn.inverse_dynamics(q + h * dq, qd, qdd) - dyn.inverse_dynamics(q - h * dq, qd, qdd)) / (2 * h)
+    assert rel_err(tangent, fd) < 1e-7
+
+
+def test_requests_are_checked(panda_tau):
+    robot, dyn = panda_tau
+    with pytest.raises(jaxskid.RequestError, match="mass_matrix.*was not lowered"):
+        dyn.mass_matrix(np.zeros(7))
+    with pytest.raises(jaxskid.RequestError, match="unknown quantity 'mass_matrx'"):
+        jaxskid.lower(robot, ["mass_matrx"])
+    with pytest.raises(jaxskid.ShapeError, match=r"q: expected shape \(7,\)"):
+        dyn.inverse_dynamics(np.zeros(6), np.zeros(7), np.zeros(7))
+    with pytest.raises(jaxskid.RequestError, match="params is missing"):
+        dyn.inverse_dynamics(np.zeros(7), np.zeros(7), np.zeros(7), {"panda_link1_m": 1.0})
+
+
+def test_symbolic_subset_and_assignments():
+    robot = jaxskid.load(URDFS["double_pendulum"])
+    keep = [p for p in robot.parameters if p.endswith("_m")]
+    dyn = jaxskid.lower(robot, ["inverse_dynamics"], symbolic=keep)
+    assert dyn.parameters == tuple(keep)
+    full = jaxskid.lower(robot, ["inverse_dynamics"])
+    rng = np.random.default_rng(5)
+    q, qd, qdd = rng.normal(size=(3, 2))
+    np.testing.assert_allclose(dyn.inverse_dynamics(q, qd, qdd), full.inverse_dynamics(q, qd, qdd), rtol=1e-12)
+    heavier = dict(robot.default_params(), **{keep[0]: 2 * robot.default_params()[keep[0]]})
+    np.testing.assert_allclose(
+        dyn.inverse_dynamics(q, qd, qdd, {k: heavier[k] for k in keep}),
+        full.inverse_dynamics(q, qd, qdd, heavier),
+        rtol=1e-12,
+    )
