@@ -4,6 +4,8 @@ from ._errors import JaxskidError, ModelError, RequestError, ShapeError
 from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from ._model import Frame, Joint, Robot, spatial_to_body, symbol
 from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, derive
+from . import _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
+from ._regressor import params_from_standard, standard_params
 from ._lower import cache_dir
 from ._dynamics import Dynamics
 from ._api import load, lower
@@ -35,6 +37,8 @@ __all__ = [
     "rot_rpy",
     "screw",
     "spatial_inertia",
+    "standard_params",
+    "params_from_standard",
     "spatial_to_body",
     "symbol",
 ]

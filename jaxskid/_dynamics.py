@@ -101,7 +101,7 @@ class Dynamics:
         args, shape = self.signature(name)
         raw = self._raw[name]
         n = self.n_dof
-        arg_shapes = {a: ((len(self.end_effectors), 6) if a == "wrench" else (n,)) for a in args}
+        arg_shapes = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (n,)) for a in args}
 
         def call(*state, params=None):
             arrays = [jnp.asarray(x) for x in state]

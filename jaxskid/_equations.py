@@ -251,6 +251,11 @@ def derive(robot: Robot, quantities: Sequence[str] | str | None = None, *, progr
         )
     }
     arguments["wrench"] = Argument("wrench", (n_ee, 6), wrench, "end-effector wrenches (moment, force)")
+    for k, doc in (("wrench_d", "first time derivatives of the end-effector wrenches"),
+                   ("wrench_dd", "second time derivatives of the end-effector wrenches")):
+        syms = tuple(sp.Symbol(f"_{k}{e}_{c}", real=True) for e in range(n_ee) for c in range(6))
+        setattr(kin, f"{k}_symbols", [syms[6 * e: 6 * e + 6] for e in range(n_ee)])
+        arguments[k] = Argument(k, (n_ee, 6), syms, doc)
     quantities: dict[str, Quantity] = {}
     bar = _progress(names, progress)
     for name in bar:

@@ -78,6 +78,7 @@ _DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
 _WRENCHES = ("WEE", "WDEE", "W2DEE")
 _INERTIA_KEYS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
 _TOL = 1e-6
+_LARGEST = 1e30  # larger numbers are mistakes in any unit system, and overflow the numeric checks
 _ARITHMETIC = re.compile(r"[A-Za-z0-9_+\-*/^().,\s]*")
 _DECIMAL = re.compile(r"(\d+\.\d*|\.\d+)([eE][+-]?\d+)?")
 
@@ -122,6 +123,8 @@ def parse_description(data: Mapping, *, source: str = "<dict>", lock: Mapping[st
                              parsed.defaults, parsed.base)
     except ModelError as exc:
         raise _relocate(exc, parsed.keys, source) from None
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:  # numeric checks on extreme default values
+        raise ModelError(f"cannot check the model numerically with the default values ({exc})", source=source) from None
     locked = {**parsed.lock, **(lock or {})}
     if not locked:
         return robot
@@ -259,7 +262,7 @@ class _Parser:
         joint_names = self.names("joint_names", n, identifiers=False)
         joint_key = "joint_names" if joint_names else "q"
         joint_names = joint_names or names["q"] or [f"q{i + 1}" for i in range(n)]
-        for key, values in [("joint_names", joint_names), *names.items()]:
+        for key, values in [*names.items(), (joint_key, joint_names)]:
             for i, v in enumerate(values or ()):
                 self.reserved.setdefault(v, f"{key}[{i}]")
         link_names = self.names("link_names", n, identifiers=False) or [f"link{i + 1}" for i in range(n)]
@@ -288,7 +291,7 @@ class _Parser:
         keys = {"joints": {"name": joint_key, "link": "link_names", "parent": "parent", "screw": "joint_screw_coord",
                            "origin": "body_ref_config", "inertia": "mass_inertia"},
                 "frames": frame_keys}
-        extras = self.extras(n, names, joint_names, ees)
+        extras = self.extras(names, joint_names, ees)
         name = self.name_value(d.get("name", _default_name(self.source)), "name")
         return _Parsed(name, base, joints, gravity, frames, ees, defaults, self.lock(), extras, keys)
 
@@ -321,11 +324,13 @@ class _Parser:
             if expr.is_extended_real is False:
                 raise self.error(where, f"expected a real value, got {value!r}")
             try:
-                finite = math.isfinite(float(expr))
+                x = float(expr)
             except (TypeError, ValueError, OverflowError):
-                finite = False
-            if not finite:
+                x = math.inf
+            if not math.isfinite(x):
                 raise self.error(where, f"expected a finite real value, got {value!r}")
+            if abs(x) > _LARGEST:
+                raise self.error(where, f"expected a magnitude of at most {_LARGEST:g} (check the units), got {value!r}")
         return expr
 
     def vector(self, value, size, where) -> list:
@@ -423,7 +428,7 @@ class _Parser:
             if expr.free_symbols:
                 raise self.error(where, f"expected a number, got {v!r}, which depends on {', '.join(sorted(map(str, expr.free_symbols)))}")
             out[key] = float(expr)
-        self.numeric = {symbol(k): v for k, v in out.items()}
+        self.numeric = {symbol(k): sp.Float(v) for k, v in out.items()}
         return out
 
     def gravity(self) -> list:
@@ -509,7 +514,7 @@ class _Parser:
         d = self.mapping(value, where, ("type", "axis", "vec"), required=("type", "axis"))
         jtype = d["type"]
         if jtype not in ("revolute", "prismatic"):
-            raise self.error(f"{where}.type", f"unknown joint type {_describe(jtype)}; expected revolute or prismatic")
+            raise self.error(f"{where}.type", f"unknown joint type {jtype!r}; expected revolute or prismatic")
         axis = self.vector(d["axis"], 3, f"{where}.axis")
         self.check_unit(axis, f"{where}.axis", "axis")
         if jtype == "prismatic":
@@ -587,7 +592,7 @@ class _Parser:
         if isinstance(value, Mapping) and ("index" in value or "pointmass" in value):
             d = self.mapping(value, where, ("index", "pointmass"), required=("index",))
             index, pointmass = d["index"], d.get("pointmass", False)
-            if isinstance(index, bool) or not isinstance(index, (int, str)) or not str(index).isidentifier() and not _is_int(index):
+            if isinstance(index, bool) or not isinstance(index, (int, str)) or not f"Ixx{index}".isidentifier():
                 raise self.error(f"{where}.index", f"expected an integer or a name suffix, got {_describe(index)}")
             if not isinstance(pointmass, bool):
                 raise self.error(f"{where}.pointmass", f"expected true or false, got {_describe(pointmass)}")
@@ -622,74 +627,77 @@ class _Parser:
 
     def frames(self, n, link_names, base) -> tuple[list[Frame], list[str], list[str]]:
         """Named frames (end-effectors first, then ``frames``), their key paths, and the end-effector names."""
-        d = self.data
-        ee = d.get("ee")
-        if ee is None:
-            for key in ("ee_parent", "ee_names"):
-                if key in d:
-                    raise self.error(key, "given without ee")
-            ee_in, single = [], True
-        else:
-            single = isinstance(ee, Mapping) or (isinstance(ee, list) and ee and isinstance(ee[0], list)
-                                                  and ee[0] and not isinstance(ee[0][0], (list, Mapping)))
-            if not single and not isinstance(ee, list):
-                raise self.error("ee", f"expected a pose or a list of poses, got {_describe(ee)}")
-            ee_in = [ee] if single else ee
-        k = len(ee_in)
-        where_ee = ["ee"] if single and k else [f"ee[{i}]" for i in range(k)]
-        ee_poses = [self.pose(p, w) for p, w in zip(ee_in, where_ee)]
-        ee_parent = d.get("ee_parent", n)
-        if isinstance(ee_parent, list):
-            if len(ee_parent) != k:
-                raise self.error("ee_parent", f"expected {k} body indices (one per ee), got {len(ee_parent)}")
-            ee_parents = [(p, f"ee_parent[{i}]") for i, p in enumerate(ee_parent)]
-        else:
-            ee_parents = [(ee_parent, "ee_parent")] * k
-        ee_names = self.data.get("ee_names")
-        if ee_names is None:
-            ee_names = ["ee"] if k == 1 else [f"ee{i + 1}" for i in range(k)]
-            name_keys = ["ee"] * k
-        else:
-            if not isinstance(ee_names, list) or len(ee_names) != k:
-                raise self.error("ee_names", f"expected {k} names (one per ee), got {_describe(ee_names)}")
-            name_keys = [f"ee_names[{i}]" for i in range(k)]
-
-        for p, pk in ee_parents:
-            if not _is_int(p) or not 0 <= p <= n:
-                raise self.error(pk, f"expected a body index in 0..{n} (0 is the world), got {_describe(p)}")
-        entries = [(self.name_value(nm, nk), p, pose, nk) for nm, (p, _), pose, nk in
-                   zip(ee_names, ee_parents, ee_poses, name_keys)]
-        extra = d.get("frames", [])
-        if not isinstance(extra, list):
-            raise self.error("frames", f"expected a list of {{name, parent, pose}}, got {_describe(extra)}")
-        for i, f in enumerate(extra):
-            where = f"frames[{i}]"
-            f = self.mapping(f, where, ("name", "parent", "pose"), required=("name", "parent"))
-            if not _is_int(f["parent"]) or not 0 <= f["parent"] <= n:
-                raise self.error(f"{where}.parent", f"expected a body index in 0..{n} (0 is the world), got {_describe(f['parent'])}")
-            pose = self.pose(f["pose"], f"{where}.pose") if "pose" in f else sp.eye(4)
-            entries.append((self.name_value(f["name"], f"{where}.name"), f["parent"], pose, f"{where}.name"))
-
+        ees = self.end_effector_entries(n)
         taken = {base: "base", **{nm: f"link_names[{i}]" for i, nm in enumerate(link_names)}}
-        frames, keys, end_effectors = [], [], []
-        for i, (name, parent, pose, key) in enumerate(entries):
-            if i < k:
-                end_effectors.append(name)
-                if name in link_names and parent == link_names.index(name) + 1 and (pose - sp.eye(4)).is_zero_matrix:
-                    continue  # the end-effector is a body's own frame
+        bodies = {base: 0, **{nm: i + 1 for i, nm in enumerate(link_names)}}  # 1-based, 0 = world
+        frames, keys = [], []
+        for i, (name, parent, pose, key) in enumerate(ees + self.frame_entries(n)):
+            if i < len(ees) and bodies.get(name) == parent and (pose - sp.eye(4)).is_zero_matrix:
+                continue  # the end-effector is a body's own frame (or the base's)
             if name in taken:
                 raise self.error(key, f"duplicate frame name {name!r} (also {taken[name]})")
             taken[name] = key
             frames.append(Frame(name, parent - 1, sp.ImmutableMatrix(pose)))
             keys.append(key)
-        order = d.get("frame_order")
+        order = self.data.get("frame_order")
         if order is not None:
             names = [f.name for f in frames]
             if not isinstance(order, list) or sorted(map(str, order)) != sorted(names) or len(order) != len(names):
                 raise self.error("frame_order", f"expected the names {names} in some order, got {_describe(order)}")
             perm = [names.index(nm) for nm in order]
             frames, keys = [frames[j] for j in perm], [keys[j] for j in perm]
-        return frames, keys, end_effectors
+        return frames, keys, [name for name, *_ in ees]
+
+    def end_effector_entries(self, n) -> list[tuple]:
+        """(name, 1-based parent, pose, key path) of every ``ee``."""
+        d = self.data
+        ee = d.get("ee")
+        if ee is None:
+            for key in ("ee_parent", "ee_names"):
+                if key in d:
+                    raise self.error(key, "given without ee")
+            return []
+        # one pose (a mapping or a 4x4 matrix: Skidy's test) or a list of poses
+        single = isinstance(ee, Mapping) or (isinstance(ee, list) and len(ee) > 0 and isinstance(ee[0], list)
+                                              and len(ee[0]) > 0 and not isinstance(ee[0][0], (list, Mapping)))
+        if not single and not isinstance(ee, list):
+            raise self.error("ee", f"expected a pose or a list of poses, got {_describe(ee)}")
+        poses = [self.pose(ee, "ee")] if single else [self.pose(p, f"ee[{i}]") for i, p in enumerate(ee)]
+        k = len(poses)
+        parents = d.get("ee_parent", n)
+        if isinstance(parents, list):
+            if len(parents) != k:
+                raise self.error("ee_parent", f"expected {k} body indices (one per ee), got {len(parents)}")
+            parent_keys = [f"ee_parent[{i}]" for i in range(k)]
+        else:
+            parents, parent_keys = [parents] * k, ["ee_parent"] * k
+        for p, key in zip(parents, parent_keys):
+            if not _is_int(p) or not 0 <= p <= n:
+                raise self.error(key, f"expected a body index in 0..{n} (0 is the world), got {_describe(p)}")
+        names = d.get("ee_names")
+        if names is None:
+            names, name_keys = (["ee"] if k == 1 else [f"ee{i + 1}" for i in range(k)]), ["ee"] * k
+        elif not isinstance(names, list) or len(names) != k:
+            raise self.error("ee_names", f"expected {k} name(s), one per ee, got {_describe(names)}")
+        else:
+            name_keys = [f"ee_names[{i}]" for i in range(k)]
+        return [(self.name_value(nm, key), p, pose, key) for nm, p, pose, key in zip(names, parents, poses, name_keys)]
+
+    def frame_entries(self, n) -> list[tuple]:
+        """(name, 1-based parent, pose, key path) of every entry of ``frames``."""
+        value = self.data.get("frames", [])
+        if not isinstance(value, list):
+            raise self.error("frames", f"expected a list of {{name, parent, pose}}, got {_describe(value)}")
+        out = []
+        for i, f in enumerate(value):
+            where = f"frames[{i}]"
+            f = self.mapping(f, where, ("name", "parent", "pose"), required=("name", "parent"))
+            if not _is_int(f["parent"]) or not 0 <= f["parent"] <= n:
+                raise self.error(f"{where}.parent", f"expected a body index in 0..{n} (0 is the world), "
+                                                    f"got {_describe(f['parent'])}")
+            pose = self.pose(f["pose"], f"{where}.pose") if "pose" in f else sp.eye(4)
+            out.append((self.name_value(f["name"], f"{where}.name"), f["parent"], pose, f"{where}.name"))
+        return out
 
     def lock(self) -> dict:
         value = self.data.get("lock", {})
@@ -697,7 +705,7 @@ class _Parser:
             raise self.error("lock", f"expected a mapping of joint names to positions, got {_describe(value)}")
         return {str(k): self.scalar(v, f"lock.{k}") for k, v in value.items()}
 
-    def extras(self, n, names, joint_names, end_effectors) -> DescriptionExtras:
+    def extras(self, names, joint_names, end_effectors) -> DescriptionExtras:
         q = names["q"] or joint_names
         derived = {key: tuple(names[key] or ["d" * k + v for v in q]) for k, key in enumerate(_DERIVATIVES)}
         wrenches = []
@@ -814,7 +822,8 @@ def robot_to_dict(robot: Robot) -> dict:
 
 
 class _Dumper(yaml.SafeDumper):
-    pass
+    def increase_indent(self, flow=False, indentless=False):
+        return super().increase_indent(flow, False)  # indent lists under their key
 
 
 def _represent_list(dumper, data):
