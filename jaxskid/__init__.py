@@ -10,6 +10,7 @@ from ._lower import cache_dir
 from ._dynamics import Dynamics
 from ._api import load, lower
 from ._urdf import read_urdf
+from ._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
 
 __version__ = "0.1.0"
 
@@ -31,6 +32,12 @@ __all__ = [
     "ShapeError",
     "pose",
     "read_urdf",
+    "DescriptionExtras",
+    "parse_description",
+    "read_description",
+    "read_extras",
+    "robot_to_dict",
+    "write_description",
     "pose_xyzrpy",
     "rot_axis_angle",
     "rot_quaternion",

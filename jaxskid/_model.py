@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -35,8 +36,18 @@ def symbol(name: str) -> sp.Symbol:
     return sp.Symbol(name, real=True)
 
 
+_ARITHMETIC = re.compile(r"[A-Za-z0-9_+\-*/^().,\s]*")
+
+
 def to_expr(value, *, where: str = "") -> sp.Expr:
-    """A SymPy expression from a number, a string or an expression; symbols become real symbols."""
+    """A SymPy expression from a number, a string or an expression; symbols become real symbols.
+
+    Strings may hold arithmetic on numbers, names and function calls only (no attribute access, no
+    dunder names), so parsing never runs arbitrary code. Floats with an integer value become exact
+    integers, so that structural zeros and ones stay exact in the derivation.
+    """
+    if isinstance(value, str) and (not value.strip() or not _ARITHMETIC.fullmatch(value) or "__" in value):
+        raise ModelError(f"expected an arithmetic expression of numbers and parameter names, got {value!r}", where=where)
     try:
         expr = sp.sympify(value, locals=_SYMPIFY_LOCALS) if isinstance(value, str) else sp.sympify(value)
     except (sp.SympifyError, SyntaxError, TypeError, ValueError, AttributeError) as exc:
@@ -52,7 +63,11 @@ _SYMPIFY_LOCALS["pi"] = sp.pi
 
 
 def _realify(expr):
-    subs = {s: symbol(s.name) for s in expr.free_symbols if not s.is_real}
+    subs: dict = {s: symbol(s.name) for s in expr.free_symbols if not s.is_real}
+    for f in expr.atoms(sp.Float):
+        x = float(f)
+        if math.isfinite(x) and x == int(x) and abs(x) < 2**53:
+            subs[f] = sp.Integer(int(x))
     return expr.xreplace(subs) if subs else expr
 
 
@@ -497,22 +512,28 @@ def _check_inertia_numeric(m6, numeric, where) -> None:
     vals = [_num(e, numeric) for e in m6]
     if any(x is None for x in vals):
         return
-    a = np.array(vals, dtype=float).reshape(6, 6)
-    if not np.all(np.isfinite(a)):
-        raise ModelError("expected finite mass-inertia values", where=where)
+    with np.errstate(all="ignore"):
+        a = np.array(vals, dtype=float).reshape(6, 6)
+        if not np.all(np.isfinite(a)) or np.abs(a).max() > 1e150:
+            raise ModelError("expected finite mass-inertia values of a physical size", where=where)
+        _check_inertia_values(a, where)
+
+
+def _check_inertia_values(a, where) -> None:
+    import numpy as np
+
     m = a[5, 5]
     if m < 0:
         raise ModelError(f"expected a non-negative mass, got {m:.6g}", where=where)
-    scale = max(1.0, float(np.abs(a).max()))
     if m == 0:
-        if np.abs(a).max() > 0 and np.linalg.eigvalsh(a[:3, :3]).min() < -1e-9 * scale:
+        if np.abs(a).max() > 0 and np.linalg.eigvalsh(a[:3, :3]).min() < -1e-9 * float(np.abs(a).max()):
             raise ModelError("expected a positive semi-definite inertia for a massless body", where=where)
         return
     c = np.array([a[2, 4], a[0, 5], a[1, 3]]) / m  # m c~ block, (omega, v) order
     cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
     ic = a[:3, :3] + m * cx @ cx  # inertia about the centre of mass
     ev = np.linalg.eigvalsh(ic)
-    if ev.min() < -1e-9 * max(1.0, float(np.abs(ic).max())):
+    if ev.min() < -1e-9 * float(np.abs(a[:3, :3]).max()):  # relative to I_o, which holds the m c^2 terms
         raise ModelError(
             f"expected a positive definite rotational inertia about the centre of mass, got eigenvalues {np.round(ev, 9).tolist()}",
             where=where,

@@ -1,0 +1,126 @@
+"""Derive + lower + compile time, and batched throughput of tau, M, Q_grav and C qd against Pinocchio.
+
+    python benchmarks/core.py [--robot panda] [--repeats 7]
+
+Every figure is a median over repeats, measured in this run; the Pinocchio figures are per call from
+Python on the same states. Ratios > 1 mean jaxskid is faster per state.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+
+import jaxskid  # noqa: E402
+
+ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
+ROBOTS = {
+    "panda": (ERD / "panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
+    "ur5": (ERD / "ur_description/urdf/ur5_robot.urdf", None),
+    "solo12": (ERD / "solo_description/robots/solo12.urdf", None),
+}
+QUANTITIES = ("inverse_dynamics", "mass_matrix", "gravity_torques", "coriolis_torques")
+ARGS = {"inverse_dynamics": 3, "mass_matrix": 1, "gravity_torques": 1, "coriolis_torques": 2}
+
+
+def median_time(fn, repeats: int) -> float:
+    fn()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return float(np.median(times))
+
+
+def pinocchio_calls(model, q, qd, qdd, repeats):
+    data = model.createData()
+    n = len(q)
+    funcs = {
+        "inverse_dynamics": lambda k: pin.rnea(model, data, q[k], qd[k], qdd[k]),
+        "mass_matrix": lambda k: pin.crba(model, data, q[k]),
+        "gravity_torques": lambda k: pin.computeGeneralizedGravity(model, data, q[k]),
+        "coriolis_torques": lambda k: pin.nonLinearEffects(model, data, q[k], qd[k]),
+    }
+    out = {}
+    for name, f in funcs.items():
+        def loop():
+            for k in range(n):
+                f(k)
+        out[name] = median_time(loop, repeats) / n
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robot", default="panda", choices=sorted(ROBOTS))
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--batches", default="1,1024,65536")
+    ap.add_argument("--symbolic", choices=("all", "none"), default="all",
+                    help="keep every inertial parameter symbolic (all) or substitute the URDF values (none)")
+    args = ap.parse_args(argv)
+    path, lock = ROBOTS[args.robot]
+    batches = [int(b) for b in args.batches.split(",")]
+
+    t0 = time.perf_counter()
+    robot = jaxskid.load(path, lock=lock)
+    t_load = time.perf_counter() - t0
+    symbolic = None if args.symbolic == "all" else ()
+    with tempfile.TemporaryDirectory() as cache:
+        t0 = time.perf_counter()
+        dyn = jaxskid.lower(robot, QUANTITIES, symbolic=symbolic, cache_dir=cache)
+        t_derive = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        dyn2 = jaxskid.lower(robot, QUANTITIES, symbolic=symbolic, cache_dir=cache)
+        t_cached = time.perf_counter() - t0
+    assert dyn2.source == dyn.source
+    n = robot.n_dof
+    p = dyn.param_vector()
+    rng = np.random.default_rng(0)
+    big = max(batches)
+    states = rng.uniform(-1, 1, size=(3, big, n))
+    compiled = {}
+    t0 = time.perf_counter()
+    for name in QUANTITIES:
+        f = jax.jit(jax.vmap(dyn.raw(name), in_axes=(*([0] * ARGS[name]), None)))
+        compiled[name] = f.lower(*(jnp.asarray(s[:big]) for s in states[: ARGS[name]]), p).compile()
+    t_compile = time.perf_counter() - t0
+
+    print(f"robot {args.robot}: {n} DOF, {len(dyn.parameters)} symbolic parameters, jax {jax.__version__}, "
+          f"pinocchio {pin.__version__}, float64")
+    print(f"load {t_load:.2f} s | derive + print {t_derive:.2f} s (cached reload {t_cached:.3f} s) | "
+          f"compile {len(QUANTITIES)} quantities at batch {big}: {t_compile:.2f} s | "
+          f"cold total {t_load + t_derive + t_compile:.2f} s")
+
+    q, qd, qdd = (np.ascontiguousarray(s[:2000]) for s in states)
+    peer = pinocchio_calls(pin.buildReducedModel(pin.buildModelFromUrdf(str(path)),
+                                                 [pin.buildModelFromUrdf(str(path)).getJointId(j) for j in (lock or {})],
+                                                 pin.neutral(pin.buildModelFromUrdf(str(path)))) if lock else
+                           pin.buildModelFromUrdf(str(path)), q, qd, qdd, args.repeats)
+    print(f"\n{'quantity':18s} {'batch':>6s} {'jaxskid ns/state':>17s} {'pinocchio ns/call':>18s} {'speed-up':>9s}")
+    for name in QUANTITIES:
+        for b in batches:
+            arrays = [jnp.asarray(s[:b]) for s in states[: ARGS[name]]]
+            f = compiled[name] if b == big else jax.jit(jax.vmap(dyn.raw(name), in_axes=(*([0] * ARGS[name]), None)))
+            t = median_time(lambda: f(*arrays, p).block_until_ready(), args.repeats) / b
+            print(f"{name:18s} {b:6d} {t * 1e9:17.1f} {peer[name] * 1e9:18.1f} {peer[name] / t:9.2f}")
+    b = big
+    arrays32 = [jnp.asarray(s[:b], dtype=jnp.float32) for s in states[:3]]
+    f32 = jax.jit(jax.vmap(dyn.raw("inverse_dynamics"), in_axes=(0, 0, 0, None)))
+    t = median_time(lambda: f32(*arrays32, p.astype(jnp.float32)).block_until_ready(), args.repeats) / b
+    print(f"{'inverse_dynamics':18s} {b:6d} {t * 1e9:17.1f} {peer['inverse_dynamics'] * 1e9:18.1f} "
+          f"{peer['inverse_dynamics'] / t:9.2f}   (float32)")
+
+
+if __name__ == "__main__":
+    main()
