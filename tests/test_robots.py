@@ -1,0 +1,74 @@
+"""Every robot in robots/ against a Pinocchio model built from the same description, and the 2R arm
+against its textbook closed form."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import sympy as sp
+
+import jaxskid
+from pinref import to_pinocchio
+
+ROBOTS = sorted((Path(__file__).parents[1] / "robots").glob("*.yaml"))
+QUANTITIES = ["mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics", "forward_kinematics"]
+
+
+def test_there_are_seed_robots():
+    names = {p.stem for p in ROBOTS}
+    assert {"single_pendulum", "double_pendulum", "arm_2r", "prr", "hopping_leg", "arm_3dof", "quadruped_12dof"} <= names
+
+
+@pytest.mark.parametrize("path", ROBOTS, ids=lambda p: p.stem)
+def test_seed_robot_matches_pinocchio(path):
+    robot = jaxskid.load(path)
+    params = robot.default_params()
+    assert set(params) == set(robot.parameters), "every seed robot gives every parameter a default"
+    model, frames = to_pinocchio(robot, params)
+    data = model.createData()
+    dyn = jaxskid.lower(robot, QUANTITIES)
+    rng = np.random.default_rng(11)
+    n = robot.n_dof
+    q, qd, qdd = rng.uniform(-2, 2, size=(3, 200, n))
+    m, cqd, g, tau = (np.asarray(x) for x in (dyn.mass_matrix(q), dyn.coriolis_torques(q, qd), dyn.gravity_torques(q),
+                                              dyn.inverse_dynamics(q, qd, qdd)))
+    poses = dyn.forward_kinematics(q)
+    for k in range(200):
+        mp = pin.crba(model, data, q[k])
+        mp = np.triu(mp) + np.triu(mp, 1).T
+        gp = pin.computeGeneralizedGravity(model, data, q[k]).copy()
+        for ours, ref in ((m[k], mp), (g[k], gp), (cqd[k], pin.nonLinearEffects(model, data, q[k], qd[k]) - gp),
+                          (tau[k], pin.rnea(model, data, q[k], qd[k], qdd[k]))):
+            assert np.linalg.norm(ours - ref) <= 1e-9 * max(1e-12, np.linalg.norm(ref))
+        pin.framesForwardKinematics(model, data, q[k])
+        for f in frames:
+            assert np.abs(np.asarray(poses[f][k]) - data.oMf[model.getFrameId(f)].homogeneous).max() <= 1e-9
+
+
+def inline(eqs, name):
+    """The closed form of a quantity: the program's assignments substituted back into its outputs."""
+    values = {}
+    for s, e in eqs.program([name]):
+        values[s] = e.xreplace(values)
+    return [e.xreplace(values) for e in eqs.quantities[name].outputs]
+
+
+def test_arm_2r_textbook_closed_form():
+    robot = jaxskid.load(Path(__file__).parents[1] / "robots" / "arm_2r.yaml")
+    assert set(robot.parameters) == {"m1", "m2", "l1", "l2", "g"}
+    eqs = jaxskid.derive(robot, ["mass_matrix", "gravity_torques"])
+    m1, m2, l1, l2, g = (jaxskid.symbol(x) for x in ("m1", "m2", "l1", "l2", "g"))
+    q1, q2 = eqs.arguments["q"].symbols
+    c2 = sp.cos(q2)
+    textbook_m = [
+        m1 * l1**2 + m2 * (l1**2 + 2 * l1 * l2 * c2 + l2**2), m2 * (l1 * l2 * c2 + l2**2),
+        m2 * (l1 * l2 * c2 + l2**2), m2 * l2**2,
+    ]
+    textbook_g = [(m1 + m2) * g * l1 * sp.cos(q1) + m2 * g * l2 * sp.cos(q1 + q2), m2 * g * l2 * sp.cos(q1 + q2)]
+    for ours, ref in zip(inline(eqs, "mass_matrix"), textbook_m):
+        assert sp.simplify(sp.expand_trig(ours - ref)) == 0
+    for ours, ref in zip(inline(eqs, "gravity_torques"), textbook_g):
+        assert sp.simplify(sp.expand_trig(ours - ref)) == 0
