@@ -3,12 +3,14 @@
 from ._errors import JaxskidError, ModelError, RequestError, ShapeError
 from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from ._model import Frame, Joint, Robot, spatial_to_body, symbol
-from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, derive
+from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from . import _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
 from ._regressor import params_from_standard, standard_params
 from ._lower import cache_dir
 from ._dynamics import Dynamics
 from ._api import load, lower
+from ._native import BuildError, NativeDynamics, compile_native
+from . import codegen
 from ._urdf import read_urdf
 from ._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
 
@@ -16,10 +18,13 @@ __version__ = "0.1.0"
 
 __all__ = [
     "DEFAULT_QUANTITIES",
+    "BuildError",
     "Dynamics",
     "Equations",
     "QUANTITIES",
     "cache_dir",
+    "codegen",
+    "compile_native",
     "derive",
     "load",
     "lower",
@@ -27,6 +32,8 @@ __all__ = [
     "JaxskidError",
     "Joint",
     "ModelError",
+    "NativeDynamics",
+    "Options",
     "RequestError",
     "Robot",
     "ShapeError",

@@ -7,6 +7,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from ._dynamics import Dynamics
+from ._equations import Options
 from ._errors import ModelError
 from ._lower import generate_module
 from ._model import Robot
@@ -40,6 +41,7 @@ def lower(
     symbolic: Iterable[str] | None = None,
     cache: bool = True,
     cache_dir: str | os.PathLike | None = None,
+    options: Options | None = None,
     progress: bool = False,
 ) -> Dynamics:
     """Derive, lower and wrap the requested quantities of ``robot`` (only those).
@@ -51,6 +53,7 @@ def lower(
         symbolic: the parameters that stay inputs of the generated functions; every other parameter is
             replaced by its default value (the ``assignments``). ``None`` keeps all parameters symbolic.
         cache: reuse and write generated modules in ``cache_dir`` (default :func:`jaxskid.cache_dir`).
+        options: how expressions are formed (:class:`jaxskid.Options`: CSE, simplification, trig).
         progress: show a progress bar while deriving.
     """
     if symbolic is not None:
@@ -64,5 +67,7 @@ def lower(
         fixed = [p for p in robot.parameters if p not in keep]
         if fixed:
             robot = robot.substitute(fixed)
-    ns, source, path = generate_module(robot, quantities, cache=cache, directory=cache_dir, progress=progress)
+    ns, source, path = generate_module(
+        robot, quantities, cache=cache, directory=cache_dir, options=options, progress=progress
+    )
     return Dynamics(ns, source, path)

@@ -167,6 +167,77 @@ register(QuantitySpec(
 
 
 @dataclass(frozen=True)
+class Options:
+    """How the closed form is built: a trade between derive time, run time and round-off.
+
+    Attributes:
+        cse: ``"tape"`` (default) names every intermediate and shares identical ones; ``"sympy"`` also
+            runs ``sympy.cse`` over the whole program; ``"none"`` substitutes everything into one tree
+            per output entry (Skidy's form: it swells quickly beyond 3-4 joints).
+        simplify: ``"none"`` (default), ``"expand"`` (``sympy.expand`` of each assignment) or
+            ``"trigsimp"`` (``sympy.trigsimp`` of each assignment).
+        trig: ``"symbols"`` (default) names sin(q_i) and cos(q_i) once; ``"inline"`` leaves the calls
+            in place.
+    """
+
+    cse: str = "tape"
+    simplify: str = "none"
+    trig: str = "symbols"
+
+    def __post_init__(self):
+        for field_name, allowed in (("cse", ("tape", "sympy", "none")), ("simplify", ("none", "expand", "trigsimp")),
+                                    ("trig", ("symbols", "inline"))):
+            value = getattr(self, field_name)
+            if value not in allowed:
+                raise RequestError(f"Options.{field_name}: expected one of {', '.join(allowed)}, got {value!r}")
+
+
+def _postprocess(assignments: list, outputs: dict, options: Options) -> tuple[list, dict]:
+    """Apply the simplification level and CSE strategy to a derived program."""
+    if options.simplify != "none":
+        simp = sp.expand if options.simplify == "expand" else sp.trigsimp
+        assignments = [(s, simp(e)) for s, e in assignments]
+        outputs = {k: [simp(e) for e in v] for k, v in outputs.items()}
+    if options.cse == "none":
+        values: dict = {}
+        for s, e in assignments:
+            values[s] = e.xreplace(values)
+        return [], {k: [sp.sympify(e).xreplace(values) for e in v] for k, v in outputs.items()}
+    if options.cse == "sympy":
+        keys = list(outputs)
+        sizes = [len(outputs[k]) for k in keys]
+        flat = [e for _, e in assignments] + [sp.sympify(e) for k in keys for e in outputs[k]]
+        repl, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_c", real=True), order="none")
+        na = len(assignments)
+        merged = [*repl, *((s, reduced[i]) for i, (s, _) in enumerate(assignments))]
+        rest, new_outputs, i = reduced[na:], {}, 0
+        for k, size in zip(keys, sizes):
+            new_outputs[k] = rest[i:i + size]
+            i += size
+        return _toposort(merged), new_outputs
+    return assignments, outputs
+
+
+def _toposort(assignments: list) -> list:
+    defined = {s for s, _ in assignments}
+    by_symbol = dict(assignments)
+    order, done = [], set()
+    for s, _ in assignments:
+        stack = [(s, False)]
+        while stack:
+            sym, expanded = stack.pop()
+            if sym in done:
+                continue
+            if expanded:
+                done.add(sym)
+                order.append((sym, by_symbol[sym]))
+                continue
+            stack.append((sym, True))
+            stack.extend((d, False) for d in by_symbol[sym].free_symbols if d in defined and d not in done)
+    return order
+
+
+@dataclass(frozen=True)
 class Equations:
     """The requested quantities of one robot as a shared straight-line program.
 
@@ -180,6 +251,7 @@ class Equations:
     arguments: dict[str, Argument]
     quantities: dict[str, Quantity]
     assignments: tuple[tuple[sp.Symbol, sp.Expr], ...]
+    options: Options = Options()
     _index: dict = field(default_factory=dict, compare=False, repr=False)
 
     def program(self, names: Iterable[str]) -> list[tuple[sp.Symbol, sp.Expr]]:
@@ -232,10 +304,17 @@ def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, 
     return tuple(sorted(dict.fromkeys(names), key=order.index))
 
 
-def derive(robot: Robot, quantities: Sequence[str] | str | None = None, *, progress: bool = False) -> Equations:
+def derive(
+    robot: Robot,
+    quantities: Sequence[str] | str | None = None,
+    *,
+    options: Options | None = None,
+    progress: bool = False,
+) -> Equations:
     """Derive the requested quantities of ``robot`` in closed form (nothing else is derived)."""
+    options = options or Options()
     names = resolve(robot, quantities)
-    kin = Kinematics(robot, Tape())
+    kin = Kinematics(robot, Tape(), trig=options.trig)
     n = robot.n_dof
     n_ee = len(robot.end_effectors)
     wrench = tuple(sp.Symbol(f"_w{e}_{k}", real=True) for e in range(n_ee) for k in range(6))
@@ -256,25 +335,30 @@ def derive(robot: Robot, quantities: Sequence[str] | str | None = None, *, progr
         syms = tuple(sp.Symbol(f"_{k}{e}_{c}", real=True) for e in range(n_ee) for c in range(6))
         setattr(kin, f"{k}_symbols", [syms[6 * e: 6 * e + 6] for e in range(n_ee)])
         arguments[k] = Argument(k, (n_ee, 6), syms, doc)
-    quantities: dict[str, Quantity] = {}
-    bar = _progress(names, progress)
-    for name in bar:
+    built: dict[str, list] = {}
+    for name in _progress(names, progress):
         spec = QUANTITIES[name]
         outs = spec.build(kin)
-        shape = spec.shape(robot)
         size = 1
-        for d in shape:
+        for d in spec.shape(robot):
             size *= d
         if len(outs) != size:
-            raise AssertionError(f"{name}: built {len(outs)} entries for shape {shape}")
-        quantities[name] = Quantity(name, spec.args, shape, tuple(sp.sympify(e) for e in outs), spec.equation, spec.doc)
+            raise AssertionError(f"{name}: built {len(outs)} entries for shape {spec.shape(robot)}")
+        built[name] = [sp.sympify(e) for e in outs]
+    assignments, built = _postprocess(list(kin.tape.defs.items()), built, options)
+    quantities = {
+        name: Quantity(name, QUANTITIES[name].args, QUANTITIES[name].shape(robot), tuple(outs),
+                       QUANTITIES[name].equation, QUANTITIES[name].doc)
+        for name, outs in built.items()
+    }
     return Equations(
         robot=robot,
         parameters=robot.parameters,
         param_symbols=tuple(kin.params),
         arguments=arguments,
         quantities=quantities,
-        assignments=tuple(kin.tape.defs.items()),
+        assignments=tuple(assignments),
+        options=options,
     )
 
 

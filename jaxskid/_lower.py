@@ -24,7 +24,7 @@ from pathlib import Path
 import sympy as sp
 from sympy.printing.numpy import JaxPrinter
 
-from ._equations import Equations, derive, resolve
+from ._equations import Equations, Options, derive, resolve
 from ._model import Robot
 
 log = logging.getLogger("jaxskid")
@@ -152,11 +152,12 @@ def cache_dir() -> Path:
     return Path(base) / "jaxskid"
 
 
-def request_key(robot: Robot, names: Sequence[str]) -> str:
+def request_key(robot: Robot, names: Sequence[str], options: Options | None = None) -> str:
     h = hashlib.sha256()
     h.update(GENERATOR_VERSION.encode())
     h.update(robot.fingerprint().encode())
     h.update(repr(tuple(names)).encode())
+    h.update(repr(options or Options()).encode())
     return h.hexdigest()
 
 
@@ -188,6 +189,7 @@ def generate_module(
     *,
     cache: bool = True,
     directory: Path | str | None = None,
+    options: Options | None = None,
     progress: bool = False,
 ) -> tuple[dict, str, Path | None]:
     """Derive (or fetch from the cache) and load the JAX module of the requested quantities.
@@ -196,7 +198,7 @@ def generate_module(
     regenerated.
     """
     names = resolve(robot, quantities)
-    key = request_key(robot, names)
+    key = request_key(robot, names, options)
     stem = re.sub(r"[^A-Za-z0-9_]+", "_", robot.name)[:40] or "robot"
     path = Path(directory or cache_dir()) / f"{stem}-{key[:20]}.py" if cache else None
     if path is not None and path.exists():
@@ -208,7 +210,7 @@ def generate_module(
                 return ns, text, path
         except Exception as exc:  # corrupted entry: fall through and regenerate
             log.warning("jaxskid: cache entry %s is unreadable (%s); regenerating", path, exc)
-    eqs = derive(robot, names, progress=progress)
+    eqs = derive(robot, names, options=options, progress=progress)
     text = module_source(eqs, names, key)
     ns = _load_source(text, str(path) if path else "<jaxskid>")
     if path is not None:

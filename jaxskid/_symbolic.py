@@ -119,9 +119,10 @@ class Kinematics:
 
     ORDERS = ("q", "qd", "qdd", "q3d", "q4d")
 
-    def __init__(self, robot: Robot, tape: Tape | None = None):
+    def __init__(self, robot: Robot, tape: Tape | None = None, *, trig: str = "symbols"):
         self.robot = robot
         self.tape = tape or Tape()
+        self.trig = trig  # "symbols": sin/cos of each q_i named once; "inline": left in every expression
         self.n = robot.n_dof
         self.state = {k: [sp.Symbol(f"_{k}{i}", real=True) for i in range(self.n)] for k in self.ORDERS}
         self.params = [symbol(p) for p in robot.parameters]
@@ -168,7 +169,7 @@ class Kinematics:
             re = [[sp.Integer(int(r == c)) for c in range(3)] for r in range(3)]
             pe = [t(e * qi) for e in v]
         else:
-            s, c = t(sp.sin(qi)), t(sp.cos(qi))
+            s, c = (t(sp.sin(qi)), t(sp.cos(qi))) if self.trig == "symbols" else (sp.sin(qi), sp.cos(qi))
             wx = lie.skew(w)
             wx2 = wx * wx
             re = [[t(sp.Integer(int(r == k)) + s * wx[r, k] + (1 - c) * wx2[r, k]) for k in range(3)] for r in range(3)]
