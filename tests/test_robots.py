@@ -72,3 +72,21 @@ def test_arm_2r_textbook_closed_form():
         assert sp.simplify(sp.expand_trig(ours - ref)) == 0
     for ours, ref in zip(inline(eqs, "gravity_torques"), textbook_g):
         assert sp.simplify(sp.expand_trig(ours - ref)) == 0
+
+
+def test_python_description_equals_yaml():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("python_robot", Path(__file__).parents[1] / "examples" / "python_robot.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    built = module.arm_2r()
+    loaded = jaxskid.load(Path(__file__).parents[1] / "robots" / "arm_2r.yaml")
+    assert built.joint_types == loaded.joint_types and built.parents == loaded.parents
+    a = jaxskid.lower(built, ["inverse_dynamics", "forward_kinematics"])
+    b = jaxskid.lower(loaded, ["inverse_dynamics", "forward_kinematics"])
+    params = {"m1": 1.3, "m2": 0.7, "l1": 0.9, "l2": 0.6, "g": 9.81}
+    rng = np.random.default_rng(0)
+    q, qd, qdd = rng.normal(size=(3, 10, 2))
+    np.testing.assert_allclose(a.inverse_dynamics(q, qd, qdd, params), b.inverse_dynamics(q, qd, qdd, params), rtol=1e-13)
+    np.testing.assert_allclose(a.forward_kinematics(q, params)["tip"], b.forward_kinematics(q, params)["tip"], atol=1e-14)
