@@ -305,18 +305,62 @@ class Kinematics:
                 wrench[parent] = add(wrench[parent], self.to_parent(i, w))
         return tau
 
-    def composite_inertia(self, i: int) -> sp.Matrix:
-        """``Ic_i = M_i + sum_children T_c^T Ic_c T_c`` (CRBA, Featherstone 2008, Alg. 6.2)."""
-        key = ("Ic", i)
+    def composite_inertia_parts(self, i: int) -> tuple:
+        """Composite inertia of the subtree at body i as ``(m, h, I)`` in body i's frame: mass, first
+        moment ``h = m c`` and rotational inertia about the frame origin (CRBA, Featherstone 2008,
+        Alg. 6.2, in the 10-parameter form). A child's ``(m, h, I)`` at pose ``(R, p)`` moves to the
+        parent as ``h' = R h + m p`` and ``I' = R I R^T + m(|p|^2 1 - p p^T) - (h_R p^T + p h_R^T - 2 (p.h_R) 1)``.
+        """
+        key = ("Icp", i)
         if key in self._memo:
             return self._memo[key]
-        ic = self.inertia(i)
+        t = self.tape
+        m6 = self.inertia(i)
+        mass = m6[5, 5]
+        h = [m6[2, 4], m6[0, 5], m6[1, 3]]
+        inert = [[m6[r, c] for c in range(3)] for r in range(3)]
         for c in self.robot.children(i):
-            ic = ic + self.transform_inertia_to_parent(c, self.composite_inertia(c))
-        ic = sp.Matrix(6, 6, lambda r, k: self.tape(ic[r, k]) if r <= k else 0)
-        ic = sp.Matrix(6, 6, lambda r, k: ic[r, k] if r <= k else ic[k, r])
-        self._memo[key] = ic
-        return ic
+            mc, hc, ic = self.composite_inertia_parts(c)
+            r, p = self.relative(c)
+            hr = t.vec(matvec(r, hc))
+            ri = [t.vec(row) for row in matmul(r, ic)]  # R I
+            rirt = [[t(sum((ri[a][k] * r[b][k] for k in range(3)), sp.Integer(0))) if a <= b else None
+                     for b in range(3)] for a in range(3)]
+            pp = t(dot(p, p))
+            ph = t(dot(p, hr))
+            mass = mass + mc
+            h = add(h, hr, scale(p, mc))
+            new_i = [[None] * 3 for _ in range(3)]
+            for a_ in range(3):
+                for b_ in range(a_, 3):
+                    e = inert[a_][b_] + rirt[a_][b_] - mc * p[a_] * p[b_] - hr[a_] * p[b_] - p[a_] * hr[b_]
+                    if a_ == b_:
+                        e = e + mc * pp + 2 * ph
+                    new_i[a_][b_] = new_i[b_][a_] = e
+            inert = new_i
+        mass = t(mass)
+        h = t.vec(h)
+        inert_t = [[None] * 3 for _ in range(3)]
+        for a_ in range(3):
+            for b_ in range(a_, 3):
+                inert_t[a_][b_] = inert_t[b_][a_] = t(inert[a_][b_])
+        out = (mass, h, inert_t)
+        self._memo[key] = out
+        return out
+
+    def composite_inertia(self, i: int) -> sp.Matrix:
+        """The composite inertia of :meth:`composite_inertia_parts` as a 6x6 matrix."""
+        m, h, inert = self.composite_inertia_parts(i)
+        hx = lie.skew(h)
+        top = sp.Matrix(inert).row_join(hx)
+        bottom = (-hx).row_join(m * sp.eye(3))
+        return top.col_join(bottom)
+
+    def apply_composite(self, i: int, x: Sequence) -> Vec:
+        """``Ic_i X = (I w + h x v, m v + w x h)`` for a twist ``X = (w, v)``."""
+        m, h, inert = self.composite_inertia_parts(i)
+        w, v = x[:3], x[3:]
+        return [*add(matvec(inert, w), cross(h, v)), *add(scale(v, m), cross(w, h))]
 
     def transform_inertia_to_parent(self, i: int, m6: sp.Matrix) -> sp.Matrix:
         """``T_i^T M T_i``: a 6x6 inertia in body i's frame, expressed in its parent's frame."""
@@ -338,7 +382,7 @@ class Kinematics:
         n = self.n
         m = sp.zeros(n)
         for i in range(n):
-            f = self.tape.vec(inertia_apply(self.composite_inertia(i), self.screw(i)))
+            f = self.tape.vec(self.apply_composite(i, self.screw(i)))
             m[i, i] = self.tape(dot(self.screw(i), f))
             j = i
             while self.robot.joints[j].parent >= 0:
