@@ -5,13 +5,19 @@ from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, sc
 from ._model import Frame, Joint, Robot, spatial_to_body, symbol
 from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from . import _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
-from ._regressor import params_from_standard, standard_params
+from ._regressor import params_from_standard, standard_parameter_names, standard_params
 from ._lower import cache_dir
 from ._dynamics import Dynamics
 from ._api import load, lower
 from ._native import BuildError, NativeDynamics, compile_native
 from . import codegen
 from ._urdf import read_urdf
+from ._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, forward_dynamics, mass_matrix_condition, rollout
+from ._identification import (
+    Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky, Standard,
+    WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
+)
+from ._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor
 from ._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
 
 __version__ = "0.1.0"
@@ -52,7 +58,35 @@ __all__ = [
     "screw",
     "spatial_inertia",
     "standard_params",
+    "standard_parameter_names",
     "params_from_standard",
+    "RK4",
+    "SemiImplicitEuler",
+    "Controller",
+    "Trajectory",
+    "forward_dynamics",
+    "mass_matrix_condition",
+    "rollout",
+    "ComputedTorque",
+    "PDGravity",
+    "SlotineLi",
+    "mixed_regressor",
+    "Adam",
+    "BaseParameters",
+    "Estimate",
+    "FitResult",
+    "GradientDescent",
+    "GradientFit",
+    "LeastSquares",
+    "LogCholesky",
+    "Standard",
+    "WeightedLeastSquares",
+    "base_parameters",
+    "fit",
+    "identify",
+    "physically_consistent",
+    "quantity_loss",
+    "trajectory_loss",
     "spatial_to_body",
     "symbol",
 ]

@@ -84,11 +84,12 @@ def test_dynamics_match_pinocchio(real_robot):
     ref = references(model, q, qd, qdd)
     got = {
         "M": dyn.mass_matrix(q),
-        "C": dyn.coriolis_matrix(q, qd),
         "Cqd": dyn.coriolis_torques(q, qd),
         "g": dyn.gravity_torques(q),
         "tau": dyn.inverse_dynamics(q, qd, qdd),
     }
+    if name != "panda":  # the full C of the 9-DOF arm (81 entries) is the slowest compile; panda7 covers it
+        got["C"] = dyn.coriolis_matrix(q, qd)
     for key, value in got.items():
         errs = [rel_err(value[k], ref[key][k]) for k in range(N_STATES) if np.linalg.norm(ref[key][k]) > 1e-12]
         assert max(errs) <= TOL, f"{name} {key}: relative error {max(errs):.3g}"
