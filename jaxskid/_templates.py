@@ -1,0 +1,182 @@
+"""Starting points for new robot descriptions: ``jaxskid template -S RRP robot.yaml`` (or ``.json``, ``.py``).
+
+A template is a serial chain with one joint per letter of the structure string (``R`` revolute, ``P``
+prismatic), every length, mass and inertia a named parameter with a plausible default, so that it loads,
+derives and lowers with no edits. Geometry: the first joint turns about (or slides along) the world z axis;
+every later revolute joint turns about its body's y axis and every later prismatic joint slides along its
+body's x axis; link i is ``L<i>`` long along its body's x axis, with its centre of mass in the middle.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+from ._errors import RequestError
+
+FORMATS = ("yaml", "json", "py")
+_STRUCTURE = re.compile(r"[RrPp]{1,64}")
+
+
+def _joints(structure: str) -> list[dict]:
+    if not isinstance(structure, str) or not _STRUCTURE.fullmatch(structure):
+        raise RequestError(
+            f"expected a structure of 1 to 64 letters R (revolute) and P (prismatic), such as RRP, got {structure!r}"
+        )
+    out = []
+    for i, letter in enumerate(structure.upper()):
+        k = i + 1
+        kind = "revolute" if letter == "R" else "prismatic"
+        axis = [0, 0, 1] if i == 0 else ([0, 1, 0] if kind == "revolute" else [1, 0, 0])
+        out.append({"k": k, "type": kind, "axis": axis, "offset": [0, 0, 0] if i == 0 else [f"L{i}", 0, 0]})
+    return out
+
+
+def _assignments(n: int) -> dict[str, float]:
+    values: dict[str, float] = {}
+    for k in range(1, n + 1):
+        values[f"L{k}"] = 0.5
+        values[f"m{k}"] = 1.0
+        values[f"Ixx{k}"] = 0.001          # slender rod along x: small inertia about its own axis
+        values[f"Iyy{k}"] = 0.0208         # about y and z: m L^2 / 12
+        values[f"Izz{k}"] = 0.0208
+    values["g"] = 9.81
+    return values
+
+
+def template_data(structure: str, name: str | None = None) -> dict:
+    """The template as a description mapping (Skidy's schema, body-fixed representation)."""
+    joints = _joints(structure)
+    n = len(joints)
+    data: dict = {"name": name or structure.lower(), "representation": "body_fixed", "gravity": [0, 0, "-g"]}
+    data["joint_names"] = [f"joint{j['k']}" for j in joints]
+    data["link_names"] = [f"link{j['k']}" for j in joints]
+    data["joint_screw_coord"] = [{"type": j["type"], "axis": j["axis"]} for j in joints]
+    data["body_ref_config"] = [{"translation": j["offset"]} for j in joints]
+    data["ee"] = {"translation": [f"L{n}", 0, 0]}
+    data["ee_names"] = ["ee"]
+    data["mass_inertia"] = [
+        {"mass": f"m{j['k']}", "com": [f"L{j['k']}/2", 0, 0],
+         "inertia": [f"Ixx{j['k']}", 0, 0, f"Iyy{j['k']}", 0, f"Izz{j['k']}"], "frame": "com"}
+        for j in joints
+    ]
+    data["assignments"] = _assignments(n)
+    return data
+
+
+def _flow(values) -> str:
+    return "[" + ", ".join(str(v) for v in values) + "]"
+
+
+def _yaml(structure: str, name: str | None) -> str:
+    data = template_data(structure, name)
+    joints = _joints(structure)
+    n = len(joints)
+    lines = [
+        f"# {structure.upper()} robot: template written by `jaxskid template -S {structure.upper()}`.",
+        "# Skidy's YAML schema (body-fixed representation): edit the geometry and the assignments, then",
+        "#   jaxskid info this.yaml        # joints, bodies, parameters, tree",
+        "#   jaxskid generate this.yaml    # derive, lower, self-check, write code",
+        "---",
+        f"name: {data['name']}",
+        "representation: body_fixed      # screws in each body's frame, poses relative to the parent body",
+        "gravity: [0, 0, -g]             # gravitational acceleration in the world frame",
+        "",
+        f"joint_names: {_flow(data['joint_names'])}",
+        f"link_names: {_flow(data['link_names'])}",
+        "",
+        "joint_screw_coord:               # per joint: type and unit axis in its body's frame",
+    ]
+    for j in joints:
+        lines.append(f"  - {{type: {j['type']}, axis: {_flow(j['axis'])}}}")
+    lines += ["", "body_ref_config:                 # per body: its frame in the parent's frame at q = 0"]
+    for j in joints:
+        lines.append(f"  - {{translation: {_flow(j['offset'])}}}")
+    lines += ["", "ee:                              # end-effector frame on the last body",
+              f"  translation: [L{n}, 0, 0]", "ee_names: [ee]", "",
+              "mass_inertia:                    # per body: mass, centre of mass and inertia about it"]
+    for j in joints:
+        k = j["k"]
+        lines.append(f"  - {{mass: m{k}, com: [L{k}/2, 0, 0], inertia: [Ixx{k}, 0, 0, Iyy{k}, 0, Izz{k}], frame: com}}")
+    lines += ["", "assignments:                     # default values of the parameters (SI units)"]
+    for key, value in data["assignments"].items():
+        lines.append(f"  {key}: {value}")
+    return "\n".join(lines) + "\n"
+
+
+def _json(structure: str, name: str | None) -> str:
+    return json.dumps(template_data(structure, name), indent=2) + "\n"
+
+
+def _python(structure: str, name: str | None) -> str:
+    joints = _joints(structure)
+    n = len(joints)
+    data = template_data(structure, name)
+    lines = [
+        f'"""{structure.upper()} robot: template written by `jaxskid template -S {structure.upper()}`.',
+        "",
+        "Edit the geometry and the defaults, then run it (derives, lowers and prints M at q = 0), or use it",
+        "wherever jaxskid's command line takes a robot: `jaxskid info this.py`, `jaxskid generate this.py`;",
+        "the command line reads the variable `robot`.",
+        '"""',
+        "",
+        "import sympy as sp",
+        "",
+        "import jaxskid",
+        "from jaxskid import Frame, Joint, Robot, pose, screw, spatial_inertia",
+        "",
+    ]
+    for k in range(1, n + 1):
+        names = f"L{k} m{k} Ixx{k} Iyy{k} Izz{k}"
+        lines.append(f"{', '.join(names.split())} = sp.symbols({names!r}, real=True)")
+    lines += ["g = sp.Symbol('g', real=True)", "", "joints = ["]
+    for j in joints:
+        k = j["k"]
+        parent = k - 2
+        offset = "(0, 0, 0)" if k == 1 else f"(L{k - 1}, 0, 0)"
+        lines += [
+            "    Joint(",
+            f"        name='joint{k}', type={j['type']!r}, parent={parent}, link='link{k}',",
+            f"        origin=pose(translation={offset}),  # body frame in the parent's frame at q = 0",
+            f"        screw=screw({j['type']!r}, {tuple(j['axis'])!r}),  # unit axis in the body's frame",
+            f"        inertia=spatial_inertia(m{k}, com=(L{k} / 2, 0, 0), inertia=(Ixx{k}, 0, 0, Iyy{k}, 0, Izz{k})),",
+            "    ),",
+        ]
+    lines += [
+        "]",
+        "",
+        "robot = Robot.create(",
+        f"    {data['name']!r},",
+        "    joints,",
+        "    gravity=(0, 0, -g),",
+        f"    frames=[Frame('ee', {n - 1}, pose(translation=(L{n}, 0, 0)))],",
+        "    end_effectors=['ee'],",
+        f"    defaults={data['assignments']!r},",
+        ")",
+        "",
+        "",
+        "if __name__ == '__main__':",
+        "    import numpy as np",
+        "",
+        "    dyn = jaxskid.lower(robot, progress=True)",
+        "    print(dyn)",
+        "    print('M(0) =')",
+        "    print(np.asarray(dyn.mass_matrix(np.zeros(robot.n_dof))))",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def render_template(structure: str, fmt: str, *, name: str | None = None) -> str:
+    """The text of a robot template.
+
+    Args:
+        structure: joint types from base to tip, ``R`` revolute and ``P`` prismatic (``"RRP"``).
+        fmt: ``"yaml"``, ``"json"`` or ``"py"``.
+        name: the robot's name (default: the structure in lower case).
+    """
+    if fmt not in FORMATS:
+        raise RequestError(f"unknown template format {fmt!r}; expected one of {', '.join(FORMATS)}")
+    if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", name):
+        raise RequestError(f"expected a robot name of letters, digits, _ and -, got {name!r}")
+    return {"yaml": _yaml, "json": _json, "py": _python}[fmt](structure, name)

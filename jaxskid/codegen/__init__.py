@@ -1,0 +1,150 @@
+"""Code generation: print derived :class:`~jaxskid.Equations` for other languages.
+
+One entry point, :func:`generate`, and one emitter per target (:data:`TARGETS`):
+
+=========  ======================================================================
+``jax``    ``<stem>_jax.py``: the module :func:`jaxskid.lower` generates and caches
+``python`` ``<stem>_numpy.py``: NumPy, single states or batches with leading axes
+``c``      ``<stem>.h`` and ``<stem>.c`` (C99)
+``cpp``    ``<stem>.hpp`` and ``<stem>.cpp`` (C++17, ``namespace <stem>``)
+``cython`` ``<stem>_cython.pyx`` and ``build_<stem>_cython.py``, which builds it in place
+``julia``  ``<stem>.jl``: ``module <stem>``
+``matlab`` ``<stem>_<quantity>.m`` per quantity (Matlab and GNU Octave), and the defaults
+``latex``  ``<stem>.tex``: the equations as a document
+=========  ======================================================================
+
+``<stem>`` is the robot's name made an identifier (:func:`stem`). Every generated function takes the
+symbolic parameters as its last input ``p`` (in the order of ``Equations.parameters``) with the robot's
+``assignments`` as defaults, prints the quantity's straight-line program so that common subexpressions
+are computed once, and every file starts with a header naming the robot, the quantities and the layout of
+each argument.
+
+Example::
+
+    eqs = jaxskid.derive(robot, ["mass_matrix", "inverse_dynamics"])
+    paths = jaxskid.codegen.generate(eqs, "c", "generated/arm")
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from .._equations import Equations
+from .._errors import RequestError
+from ._c import emit_c, emit_cpp
+from ._common import Kernel, Layout, stem
+from ._cython import emit_cython
+from ._julia import emit_julia
+from ._latex import emit_latex
+from ._matlab import emit_matlab
+from ._python import emit_jax, emit_numpy
+
+
+@dataclass(frozen=True)
+class Target:
+    """A code generation target: its name, a description and its emitter ``Layout -> {file name: text}``."""
+
+    name: str
+    description: str
+    emit: Callable[[Layout], dict[str, str]]
+
+
+TARGETS: dict[str, Target] = {
+    t.name: t
+    for t in (
+        Target("jax", "JAX module, as jaxskid.lower generates it", emit_jax),
+        Target("python", "Python module using NumPy", emit_numpy),
+        Target("c", "C99 source and header", emit_c),
+        Target("cpp", "C++ source and header", emit_cpp),
+        Target("cython", "Cython module and its build script", emit_cython),
+        Target("julia", "Julia module", emit_julia),
+        Target("matlab", "Matlab/Octave function files", emit_matlab),
+        Target("latex", "LaTeX document", emit_latex),
+    )
+}
+"""Every target :func:`generate` knows, by name."""
+
+
+def emit(eqs: Equations, target: str, names: Sequence[str] | None = None) -> dict[str, str]:
+    """The files of ``target`` for the quantities ``names`` (default: all of ``eqs``), as
+    ``{file name: text}``, without writing anything. Quantities appear in the order of ``eqs.quantities``."""
+    if target not in TARGETS:
+        raise RequestError(f"unknown target {target!r}; targets are {', '.join(TARGETS)}")
+    if names is None:
+        names = tuple(eqs.quantities)
+    elif isinstance(names, str):
+        names = (names,)
+    missing = [n for n in names if n not in eqs.quantities]
+    if missing:
+        raise RequestError(
+            f"quantity {', '.join(map(repr, missing))} was not derived; derived: {', '.join(eqs.quantities)}"
+        )
+    wanted = set(names)
+    return TARGETS[target].emit(_layout(eqs, tuple(n for n in eqs.quantities if n in wanted)))
+
+
+_last_layout: list = []
+
+
+def _layout(eqs: Equations, names: tuple[str, ...]) -> Layout:
+    """The layout of a request; the last one is kept, so that emitting several targets of the same
+    equations renames their programs once."""
+    if _last_layout and _last_layout[0].eqs is eqs and _last_layout[0].names == names:
+        return _last_layout[0]
+    layout = Layout(eqs, names)
+    _last_layout[:] = [layout]
+    return layout
+
+
+def generate(
+    eqs: Equations,
+    target: str,
+    out_dir: str | os.PathLike,
+    *,
+    names: Sequence[str] | None = None,
+    force: bool = False,
+) -> list[Path]:
+    """Write the code of ``target`` for the quantities ``names`` (default: all of ``eqs``) to ``out_dir``.
+
+    Args:
+        eqs: the derived equations (:func:`jaxskid.derive`).
+        target: one of :data:`TARGETS` (``"c"``, ``"cpp"``, ``"python"``, ...).
+        out_dir: the folder to write to; created if missing.
+        names: the quantities to generate, a subset of ``eqs.quantities``.
+        force: overwrite existing files. Without it, nothing is written if any file exists.
+
+    Returns:
+        the paths written, in a stable order.
+
+    Raises:
+        RequestError: an unknown target or a quantity that ``eqs`` lacks.
+        FileExistsError: a file exists and ``force`` is false.
+    """
+    return write(emit(eqs, target, names), out_dir, force=force)
+
+
+def write(files: Mapping[str, str], out_dir: str | os.PathLike, *, force: bool = False) -> list[Path]:
+    """Write ``{file name: text}`` (from :func:`emit`) to ``out_dir``, all or nothing.
+
+    Raises:
+        FileExistsError: a file exists and ``force`` is false; then nothing is written.
+    """
+    out = Path(out_dir)
+    paths = [out / name for name in files]
+    if not force:
+        existing = [str(p) for p in paths if p.exists()]
+        if existing:
+            raise FileExistsError(
+                f"{', '.join(existing)} already exist{'s' if len(existing) == 1 else ''}; pass force=True "
+                "(--force) to overwrite"
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    for path, text in zip(paths, files.values()):
+        path.write_text(text, encoding="utf-8")
+    return paths
+
+
+__all__ = ["TARGETS", "Kernel", "Layout", "Target", "emit", "generate", "stem", "write"]

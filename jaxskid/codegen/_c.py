@@ -1,0 +1,145 @@
+"""C99 and C++ emitters: a header with the declarations and layouts, and one source file.
+
+C: ``<stem>.h`` / ``<stem>.c``, one function per quantity,
+
+    void <stem>_<quantity>(const double *q, ..., const double *p, double *out);
+
+with every array flat and row-major, plus ``<stem>_default_params`` and ``<stem>_parameter_names``.
+C++: ``<stem>.hpp`` / ``<stem>.cpp``, the same functions in ``namespace <stem>``, and overloads taking and
+returning ``std::array`` (``p`` defaults to ``default_params``). Both compile warning-free with
+``-Wall -Wextra -Werror -pedantic``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from sympy.printing.c import C99CodePrinter
+from sympy.printing.cxx import CXX11CodePrinter
+
+from ._common import Kernel, Layout, NumberTweaks, comment, double, shape_str
+
+
+class CPrinter(NumberTweaks, C99CodePrinter):
+    """C99 expressions with jaxskid's number and power conventions."""
+
+
+class CxxPrinter(NumberTweaks, CXX11CodePrinter):
+    """C++ expressions (``std::sin``, ...) with jaxskid's number and power conventions."""
+
+    _sqrt_name = "std::sqrt"
+
+
+def body_lines(k: Kernel, printer, *, decl: str, indent: str = "    ", out: str = "out[{k}]") -> list[str]:
+    """The statements of a C-like function body: read the inputs, assign, write the outputs."""
+    lines = [f"{indent}(void){a};" for a in k.unused]
+    for s, a, i in k.inputs:
+        lines.append(f"{indent}{decl} {s.name} = {a}[{i}];")
+    for s, e in k.body:
+        lines.append(f"{indent}{decl} {s.name} = {printer.doprint(e)};")
+    for i, e in enumerate(k.outputs):
+        lines.append(f"{indent}{out.format(k=i)} = {printer.doprint(e)};")
+    return lines
+
+
+def _block(text: str) -> str:
+    return text.replace("*/", "* /")
+
+
+def _params(k: Kernel) -> str:
+    return ", ".join([*(f"const double *{a}" for a in k.args), "const double *p", "double *out"])
+
+
+def _calling(layout: Layout, cxx: bool) -> list[str]:
+    s = layout.stem
+    if cxx:
+        return [
+            f"Call: {s}::<quantity>(q, ..., p, out) with pointers to flat arrays, or with std::array arguments",
+            f"(p defaults to {s}::default_params) to get a std::array back. Results are flat and row-major:",
+            "entry (i, j) of an n x m result is out[i*m + j]. Indices above are 0-based.",
+        ]
+    return [
+        f"Call: {s}_<quantity>(q, ..., p, out) with pointers to flat arrays of doubles; out has",
+        f"{s.upper()}_<QUANTITY>_SIZE entries. Results are row-major: entry (i, j) of an n x m result is",
+        f"out[i*m + j]. {s}_default_params holds the default p. Indices above are 0-based.",
+    ]
+
+
+def _initializer(values: Sequence[str]) -> str:
+    rows = [", ".join(values[i:i + 4]) for i in range(0, len(values), 4)]
+    return "{\n    " + ",\n    ".join(rows) + ",\n}" if rows else "{}"
+
+
+def _c_double(x: float) -> str:
+    return "NAN" if x != x else double(x)
+
+
+def _c_string(s: str) -> str:
+    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def emit_c(layout: Layout) -> dict[str, str]:
+    s, S = layout.stem, layout.stem.upper()
+    n_par = len(layout.parameters)
+    head = comment(layout.header("C99", _calling(layout, cxx=False)), "//")
+    h = [head, f"#ifndef JAXSKID_{S}_H", f"#define JAXSKID_{S}_H", "", "#ifdef __cplusplus", 'extern "C" {',
+         "#endif", "", f"#define {S}_N_DOF {layout.n_dof}", f"#define {S}_N_PARAMS {n_par}"]
+    for k in layout.kernels:
+        h.append(f"#define {S}_{k.name.upper()}_SIZE {k.size}")
+    h.append("")
+    if n_par:
+        h += [f"/* Parameter names and default values, in the order of p (NAN: no default). */",
+              f"extern const char *const {s}_parameter_names[{S}_N_PARAMS];",
+              f"extern const double {s}_default_params[{S}_N_PARAMS];", ""]
+    for k in layout.kernels:
+        shapes = ", ".join(f"{a}: {shape_str(layout.arg_shape(a))}" for a in (*k.args, "p"))
+        h += [f"/* {_block(k.equation)}", f" * {_block(k.doc)}",
+              f" * {shapes} -> out: {shape_str(k.shape)}, row-major ({k.size} doubles). */",
+              f"void {s}_{k.name}({_params(k)});", ""]
+    h += ["#ifdef __cplusplus", "}", "#endif", "", f"#endif /* JAXSKID_{S}_H */", ""]
+
+    printer = CPrinter()
+    c = [head, "#include <math.h>", "", f'#include "{s}.h"', ""]
+    if n_par:
+        c.append(f"const char *const {s}_parameter_names[{S}_N_PARAMS] = "
+                 f"{_initializer([_c_string(p) for p in layout.parameters])};")
+        c.append(f"const double {s}_default_params[{S}_N_PARAMS] = "
+                 f"{_initializer([_c_double(v) for v in layout.defaults])};")
+        c.append("")
+    for k in layout.kernels:
+        c += [f"void {s}_{k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
+    return {f"{s}.h": "\n".join(h), f"{s}.c": "\n".join(c)}
+
+
+def emit_cpp(layout: Layout) -> dict[str, str]:
+    s, S = layout.stem, layout.stem.upper()
+    n_par = len(layout.parameters)
+    head = comment(layout.header("C++", _calling(layout, cxx=True)), "//")
+    h = [head, f"#ifndef JAXSKID_{S}_HPP", f"#define JAXSKID_{S}_HPP", "", "#include <array>", "",
+         f"namespace {s} {{", "", f"constexpr int n_dof = {layout.n_dof};", f"constexpr int n_params = {n_par};", "",
+         "// Parameter names and default values, in the order of p (NaN: no default).",
+         f"extern const std::array<const char *, {n_par}> parameter_names;",
+         f"extern const std::array<double, {n_par}> default_params;", ""]
+    for k in layout.kernels:
+        shapes = ", ".join(f"{a}: {shape_str(layout.arg_shape(a))}" for a in (*k.args, "p"))
+        arrays = [f"const std::array<double, {layout.arg_size(a)}> &{a}" for a in k.args]
+        arrays.append(f"const std::array<double, {n_par}> &p = default_params")
+        h += [f"// {k.equation}", f"// {k.doc}", f"// {shapes} -> out: {shape_str(k.shape)}, row-major ({k.size} doubles).",
+              f"void {k.name}({_params(k)});", "",
+              f"inline std::array<double, {k.size}> {k.name}({', '.join(arrays)})", "{",
+              f"    std::array<double, {k.size}> out{{}};",
+              f"    {k.name}({', '.join(f'{a}.data()' for a in (*k.args, 'p'))}, out.data());",
+              "    return out;", "}", ""]
+    h += [f"}}  // namespace {s}", "", f"#endif  // JAXSKID_{S}_HPP", ""]
+
+    printer = CxxPrinter()
+    nan = "std::numeric_limits<double>::quiet_NaN()"
+    c = [head, "#include <cmath>", "#include <limits>", "", f'#include "{s}.hpp"', "", f"namespace {s} {{", "",
+         f"const std::array<const char *, {n_par}> parameter_names = "
+         f"{_initializer([_c_string(p) for p in layout.parameters])};",
+         f"const std::array<double, {n_par}> default_params = "
+         f"{_initializer([nan if v != v else double(v) for v in layout.defaults])};", ""]
+    for k in layout.kernels:
+        c += [f"void {k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
+    c += [f"}}  // namespace {s}", ""]
+    return {f"{s}.hpp": "\n".join(h), f"{s}.cpp": "\n".join(c)}

@@ -1,0 +1,286 @@
+"""The installed ``jaxskid`` command, run as a subprocess: help, every subcommand, bad usage (exit 2), bad
+input (exit 1), one-line errors and the refusal to overwrite files.
+
+Numbers are checked against independent references: templates and converted models against Pinocchio
+(``pinref.to_pinocchio``) or against the source model's own lowering, generated code against
+``jaxskid.lower``.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+import jaxskid
+from pinref import to_pinocchio
+
+ROOT = Path(__file__).resolve().parents[1]
+ARM = ROOT / "robots" / "arm_2r.yaml"
+LEG = ROOT / "robots" / "hopping_leg.yaml"
+PANDA = Path(
+    importlib.metadata.distribution("example-robot-data").locate_file(
+        "cmeel.prefix/share/example-robot-data/robots/panda_description/urdf/panda.urdf"
+    )
+)
+COMMANDS = ("generate", "template", "convert", "info", "graph")
+
+
+def _exe() -> str:
+    exe = shutil.which("jaxskid")
+    assert exe, "the jaxskid console script is not installed (pip install -e .)"
+    return exe
+
+
+def jaxskid_cmd(*args, cwd=None, check_rc=None):
+    proc = subprocess.run([_exe(), *map(str, args)], capture_output=True, text=True, cwd=cwd)
+    if check_rc is not None:
+        assert proc.returncode == check_rc, f"rc={proc.returncode}\nstdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
+    return proc
+
+
+def jaxskid_many(*commands) -> list[subprocess.CompletedProcess]:
+    """Run several independent commands at once (each start imports JAX, which takes a few seconds)."""
+    procs = [subprocess.Popen([_exe(), *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for args in commands]
+    done = []
+    for args, proc in zip(commands, procs):
+        out, err = proc.communicate(timeout=600)
+        done.append(subprocess.CompletedProcess(args, proc.returncode, out, err))
+    return done
+
+
+def one_line_error(proc, rc: int, *fragments: str) -> str:
+    assert proc.returncode == rc, f"rc={proc.returncode}, expected {rc}\n{proc.stderr}"
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, f"expected one line on stderr, got:\n{proc.stderr}"
+    assert "Traceback" not in proc.stderr and lines[0].startswith("Error: ")
+    for f in fragments:
+        assert f in lines[0], (f, lines[0])
+    return lines[0]
+
+
+def raw(dyn, name, *state):
+    """The lowered JAX function, op by op (no jit compile)."""
+    return np.asarray(dyn.raw(name)(*(jnp.asarray(s) for s in state), dyn.param_vector()))
+
+
+def pinocchio_dynamics(robot, q, qd, qdd):
+    model, _ = to_pinocchio(robot, robot.default_params())
+    data = model.createData()
+    m = pin.crba(model, data, q)
+    return np.triu(m) + np.triu(m, 1).T, pin.rnea(model, data, q, qd, qdd)
+
+
+# ------------------------------------------------------------------------------------------ help
+def test_help_lists_commands_with_examples():
+    top, version, *subs = jaxskid_many(["--help"], ["--version"], *([name, "--help"] for name in COMMANDS))
+    assert top.returncode == 0
+    for name in COMMANDS:
+        assert name in top.stdout
+    assert "Examples" in top.stdout
+    for name, sub in zip(COMMANDS, subs):
+        assert sub.returncode == 0, sub.stderr
+        assert f"Usage: jaxskid {name}" in sub.stdout and "Examples:" in sub.stdout
+    assert version.returncode == 0 and jaxskid.__version__ in version.stdout
+
+
+# ------------------------------------------------------------------------------------------ template
+@pytest.mark.parametrize("ext", ["yaml", "json", "py"])
+def test_template_loads_derives_and_lowers_unedited(tmp_path, ext):
+    path = tmp_path / f"rrp_arm.{ext}"
+    proc = jaxskid_cmd("template", "-S", "RRP", path, check_rc=0)
+    assert path.exists() and "RRP" in proc.stdout
+    if ext == "py":
+        run = subprocess.run([sys.executable, str(path)], capture_output=True, text=True, cwd=tmp_path)
+        assert run.returncode == 0, run.stderr
+        assert "M(0) =" in run.stdout
+        spec = importlib.util.spec_from_file_location("rrp_template", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        robot = module.robot
+        info = jaxskid_cmd("info", path, check_rc=0)
+        assert "joint3" in info.stdout and "prismatic" in info.stdout
+    else:
+        robot = jaxskid.load(path)
+        if ext == "json":
+            assert json.loads(path.read_text())["name"] == "rrp_arm"
+    assert robot.name == "rrp_arm" and robot.joint_types == ("revolute", "revolute", "prismatic")
+    dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"])
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q, qd, qdd = rng.uniform(-2, 2, (3, 3))
+        m_ref, tau_ref = pinocchio_dynamics(robot, q, qd, qdd)
+        np.testing.assert_allclose(raw(dyn, "mass_matrix", q), m_ref, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(raw(dyn, "inverse_dynamics", q, qd, qdd), tau_ref, rtol=1e-12, atol=1e-12)
+
+
+def test_template_refuses_to_overwrite_and_checks_usage(tmp_path):
+    path = tmp_path / "robot.yaml"
+    path.write_text("mine")
+    refused, bad_letters, bad_suffix, no_structure = jaxskid_many(
+        ["template", "-S", "RRR", path], ["template", "-S", "RXP", tmp_path / "x.yaml"],
+        ["template", "-S", "RR", tmp_path / "x.txt"], ["template", tmp_path / "x.yaml"])
+    one_line_error(refused, 1, "already exists", "--force")
+    assert path.read_text() == "mine"
+    one_line_error(bad_letters, 2, "R and P")
+    one_line_error(bad_suffix, 2, ".yaml")
+    one_line_error(no_structure, 2, "--structure")
+    jaxskid_cmd("template", "-S", "RRR", path, "--force", check_rc=0)
+    assert jaxskid.load(path).n_dof == 3
+
+
+# ------------------------------------------------------------------------------------------ convert
+def test_convert_panda_round_trip(tmp_path):
+    out, rounded, symbolic = tmp_path / "panda.yaml", tmp_path / "panda_rounded.json", tmp_path / "panda_symbolic.yaml"
+    procs = jaxskid_many(["convert", PANDA, out], ["convert", PANDA, rounded, "--round", "1e-10"],
+                         ["convert", PANDA, symbolic, "--symbolic-inertia"], ["convert", ARM, tmp_path / "arm.json"])
+    for proc in procs:
+        assert proc.returncode == 0, proc.stderr
+    assert "9 joint(s)" in procs[0].stdout
+    data = json.loads(rounded.read_text())
+    entries = [x for pose in data["body_ref_config"] for row in pose for x in row]
+    assert all(abs(x) > 1e-10 or x == 0 for x in entries if isinstance(x, (int, float)))
+    assert 0 in entries and not any(0 < abs(x) < 1e-10 for x in entries if isinstance(x, float))
+    assert "panda_link1_m" in yaml.safe_load(symbolic.read_text())["assignments"]
+
+    names = ["mass_matrix", "gravity_torques", "inverse_dynamics"]
+    reference = jaxskid.lower(jaxskid.load(PANDA, symbolic_inertia=False), names)
+    rng = np.random.default_rng(11)
+    states = [rng.uniform(-1.5, 1.5, (3, 9)) for _ in range(3)]
+    for path in (out, rounded, symbolic):
+        dyn = jaxskid.lower(jaxskid.load(path), names)
+        assert dyn.joint_names == reference.joint_names
+        for q, qd, qdd in states:
+            for name, args in (("mass_matrix", (q,)), ("gravity_torques", (q,)), ("inverse_dynamics", (q, qd, qdd))):
+                got, ref = raw(dyn, name, *args), raw(reference, name, *args)
+                assert np.max(np.abs(got - ref)) <= 1e-12 * max(1.0, np.max(np.abs(ref))), (path.name, name)
+    assert jaxskid.load(tmp_path / "arm.json").parameters == jaxskid.load(ARM).parameters
+    exists, bad_suffix, bad_round = jaxskid_many(["convert", PANDA, out], ["convert", PANDA, tmp_path / "panda.urdf"],
+                                                 ["convert", PANDA, tmp_path / "p.yaml", "--round", "2"])
+    one_line_error(exists, 1, "already exists")
+    one_line_error(bad_suffix, 2, ".yaml")
+    one_line_error(bad_round, 2, "--round")
+
+
+# ------------------------------------------------------------------------------------------ info and graph
+def test_info_tables_and_tree():
+    proc = jaxskid_cmd("info", LEG, check_rc=0)
+    text = proc.stdout
+    for fragment in ("robot hopping_leg: 3 joint(s)", "rail", "prismatic", "knee", "slider", "thigh", "shank",
+                     "L1", "0.205", "kinematic tree", "└── foot  (end-effector)"):
+        assert fragment in text, fragment
+    # the body table shows the masses at their default values
+    assert any(line.split()[1:3] == ["thigh", "0.6"] for line in text.splitlines() if line.strip().startswith("2"))
+    locked = jaxskid_cmd("info", LEG, "--lock", "knee=0.5", check_rc=0)
+    assert "robot hopping_leg: 2 joint(s)" in locked.stdout
+
+
+def test_graph_writes_a_picture(tmp_path):
+    svg, png = tmp_path / "tree.svg", tmp_path / "tree.png"
+    png.write_text("mine")
+    made, refused, forced, bad = jaxskid_many(["graph", LEG, "-o", svg], ["graph", LEG, "-o", png],
+                                              ["graph", PANDA, "-o", tmp_path / "panda.png", "--force"],
+                                              ["graph", LEG, "-o", tmp_path / "tree.gif"])
+    assert made.returncode == 0 and forced.returncode == 0, made.stderr + forced.stderr
+    text = svg.read_text()
+    assert text.lstrip().startswith("<?xml") and "<svg" in text and "knee" in text and "shank" in text
+    assert (tmp_path / "panda.png").read_bytes().startswith(b"\x89PNG")
+    one_line_error(refused, 1, "already exists")
+    assert png.read_text() == "mine"
+    one_line_error(bad, 2, ".svg")
+
+
+# ------------------------------------------------------------------------------------------ generate
+def test_generate_writes_checks_and_refuses_to_overwrite(tmp_path):
+    out = tmp_path / "arm"
+    proc = jaxskid_cmd("generate", ARM, "-t", "c,python", "--target", "latex", "-q", "mass_matrix,inverse_dynamics",
+                       "-o", out, check_rc=0)
+    text = proc.stdout
+    for fragment in ("robot arm_2r", "mass_matrix", "(2, 2)", "inverse_dynamics", "derive", "lower", "compile",
+                     "self-check", "M symmetric", "wrote 4 file(s)"):
+        assert fragment in text, fragment
+    assert "FAILED" not in text
+    assert {p.name for p in out.iterdir()} == {"arm_2r.c", "arm_2r.h", "arm_2r.tex", "arm_2r_numpy.py"}
+    spec = importlib.util.spec_from_file_location("cli_arm_numpy", out / "arm_2r_numpy.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    dyn = jaxskid.lower(jaxskid.load(ARM), ["mass_matrix", "inverse_dynamics"])
+    q, qd, qdd = np.array([0.3, -0.8]), np.array([1.0, 0.5]), np.array([-0.2, 0.7])
+    np.testing.assert_allclose(module.inverse_dynamics(q, qd, qdd), raw(dyn, "inverse_dynamics", q, qd, qdd),
+                               rtol=1e-12)
+    (out / "arm_2r.c").write_text("edited")
+    one_line_error(jaxskid_cmd("generate", ARM, "-t", "c", "-o", out), 1, "already exist", "--force")
+    assert (out / "arm_2r.c").read_text() == "edited"
+    jaxskid_cmd("generate", ARM, "-t", "c", "-o", out, "--force", "--no-check", check_rc=0)
+    assert "arm_2r_inverse_dynamics" in (out / "arm_2r.c").read_text()
+
+
+def test_generate_with_lock_and_symbolic_parameters(tmp_path):
+    proc = jaxskid_cmd("generate", LEG, "-t", "python", "-q", "gravity_torques", "--lock", "knee=0.3",
+                       "--symbolic", "m2,L1", "-o", tmp_path, check_rc=0)
+    assert "2 joint(s), 2 symbolic parameter(s)" in proc.stdout
+    spec = importlib.util.spec_from_file_location("cli_leg_numpy", tmp_path / "hopping_leg_numpy.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert set(module.PARAMETERS) == {"m2", "L1"}
+    robot = jaxskid.load(LEG, lock={"knee": 0.3})
+    dyn = jaxskid.lower(robot, ["gravity_torques"], symbolic=["m2", "L1"])
+    assert module.PARAMETERS == dyn.parameters
+    q = np.array([0.05, 0.9])
+    p = np.array([{"m2": 0.5, "L1": 0.3}[k] for k in dyn.parameters])
+    np.testing.assert_allclose(module.gravity_torques(q, p), np.asarray(dyn.gravity_torques(q, p)), rtol=1e-12)
+    # and the model it was locked from: the locked knee at 0.3 carries the shank
+    full = jaxskid.lower(jaxskid.load(LEG), ["gravity_torques"])
+    np.testing.assert_allclose(module.gravity_torques(q)[1], np.asarray(full.gravity_torques(np.array([0.05, 0.9, 0.3])))[1],
+                               rtol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------ errors
+BAD_USAGE = [
+    (("generate", ARM, "--bogus"), "No such option"),
+    (("generate", ARM, "-t", "fortran"), "fortran"),
+    (("generate", ARM, "-q", "mass_matrix,jerk"), "jerk"),
+    (("generate",), "Missing argument"),
+    (("generate", "no_such_robot.yaml"), "does not exist"),
+    (("info", ARM, "--lock", "elbow"), "JOINT=POSITION"),
+    (("info", ROOT / "pyproject.toml"), ".urdf"),
+    (("frobnicate",), "No such command"),
+]
+
+
+def test_bad_usage_exits_2_with_one_line():
+    for (args, fragment), proc in zip(BAD_USAGE, jaxskid_many(*(args for args, _ in BAD_USAGE))):
+        one_line_error(proc, 2, fragment)
+
+
+def test_bad_input_exits_1_with_one_line(tmp_path):
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("joint_screw_coord: [\n")
+    missing = tmp_path / "missing.yaml"
+    missing.write_text(ARM.read_text().replace("mass_inertia:", "mass_inertia_typo:"))
+    no_robot = tmp_path / "empty.py"
+    no_robot.write_text("x = 1\n")
+    failing = tmp_path / "failing.py"
+    failing.write_text("raise RuntimeError('boom')\n")
+    cases = [
+        (("info", broken), ("broken.yaml", "invalid YAML")),
+        (("generate", missing, "-o", tmp_path / "out"), ("missing.yaml",)),
+        (("info", ARM, "--lock", "wrist=0.1"), ("wrist",)),
+        (("generate", ARM, "--symbolic", "mass9", "-o", tmp_path / "o"), ("mass9",)),
+        (("info", no_robot), ("robot",)),
+        (("info", failing), ("RuntimeError: boom",)),
+    ]
+    for (args, fragments), proc in zip(cases, jaxskid_many(*(args for args, _ in cases))):
+        one_line_error(proc, 1, *fragments)
+    assert not (tmp_path / "out").exists() and not (tmp_path / "o").exists()
