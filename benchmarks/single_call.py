@@ -83,7 +83,7 @@ def main() -> None:
         "gravity_torques": pin.computeGeneralizedGravity(model, data, q).copy(),
         "coriolis_matrix": pin.computeCoriolisMatrix(model, data, q, qd).copy(),
     }
-    header = f"{'quantity':<18} {'path':<28} {'per call':>10} {'vs Pinocchio':>13} {'max |diff|':>11}"
+    header = f"{'quantity':<18} {'path':<37} {'per call':>10} {'vs Pinocchio':>13} {'max |diff|':>11}"
     print(header)
     print("-" * len(header))
     for name, (state, pin_call, pin_name) in cases.items():
@@ -107,7 +107,7 @@ def main() -> None:
         }
         for path, t in times.items():
             diff = f"{np.abs(outputs[path] - ref[name]).max():.1e}" if path in outputs else ""
-            print(f"{name:<18} {path:<28} {t * 1e6:>8.2f} us {t / base:>12.2f}x {diff:>11}")
+            print(f"{name:<18} {path:<37} {t * 1e6:>8.2f} us {t / base:>12.2f}x {diff:>11}")
         print()
 
 

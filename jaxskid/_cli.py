@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import sys
 import time
 from pathlib import Path
@@ -219,7 +218,7 @@ def generate(robot, targets, quantities, out, lock, symbolic, check, force):
                 leaf.block_until_ready()
         t_compile = time.perf_counter() - t0
     compile_text = f"{t_compile:.2f} s (jit, first call)" if t_compile is not None else "skipped (parameters without defaults)"
-    click.echo(f"derive {t_derive:.2f} s, lower {t_lower:.2f} s (JAX module, cached), compile {compile_text}")
+    click.echo(f"derive {t_derive:.2f} s, lower {t_lower:.2f} s (JAX module), compile {compile_text}")
 
     if check:
         if not defaults_known:

@@ -282,10 +282,14 @@ def _log_cholesky_to_pseudo(th):
     return u @ jnp.swapaxes(u, -1, -2)
 
 
+def _eye3(like):
+    return jnp.eye(3, dtype=like.dtype).reshape((1,) * like.ndim + (3, 3))
+
+
 def _pseudo_to_standard(j):
     sigma = j[..., :3, :3]
     tr = jnp.trace(sigma, axis1=-2, axis2=-1)
-    inertia = tr[..., None, None] * jnp.eye(3, dtype=j.dtype) - sigma
+    inertia = tr[..., None, None] * _eye3(tr) - sigma
     return jnp.stack([
         j[..., 3, 3], j[..., 0, 3], j[..., 1, 3], j[..., 2, 3],
         inertia[..., 0, 0], inertia[..., 0, 1], inertia[..., 1, 1], inertia[..., 0, 2], inertia[..., 1, 2], inertia[..., 2, 2],
@@ -296,7 +300,7 @@ def _standard_to_pseudo(pi):
     m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz = (pi[..., k] for k in range(10))
     inertia = jnp.stack([jnp.stack([ixx, ixy, ixz], -1), jnp.stack([ixy, iyy, iyz], -1), jnp.stack([ixz, iyz, izz], -1)], -2)
     tr = (ixx + iyy + izz) / 2
-    sigma = tr[..., None, None] * jnp.eye(3, dtype=pi.dtype) - inertia
+    sigma = tr[..., None, None] * _eye3(tr) - inertia
     h = jnp.stack([hx, hy, hz], -1)
     top = jnp.concatenate([sigma, h[..., :, None]], axis=-1)
     bottom = jnp.concatenate([h, m[..., None]], axis=-1)[..., None, :]

@@ -45,7 +45,7 @@ from ._model import Robot
 from .codegen import Layout
 from .codegen._c import emit_c
 
-CFLAGS = ("-O2", "-std=c99", "-fPIC")
+CFLAGS = ("-O2", "-g0", "-std=c99", "-fPIC")
 BACKENDS = ("cffi", "ctypes")
 
 

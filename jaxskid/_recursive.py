@@ -10,10 +10,6 @@ representation of :mod:`jaxskid._model` (Müller 2018, sec. 3). The loop over th
 It is a lowering of the model, as :mod:`jaxskid._lower` is: the robot's joint origins, screws, 6x6
 inertias and gravity are lambdified to JAX functions of the parameter vector (the order of
 ``Robot.parameters``, the same vector the closed form takes), so both evaluations take the same inputs.
-
-Forward dynamics solves ``M(q) qdd = tau - C(q, qd) qd - Q_grav(q)``; :func:`forward_dynamics` returns M's
-condition number with the solution, so that an ill-conditioned solve is reported rather than silently
-returning digits that mean nothing (the relative error of qdd is up to about ``cond(M) * eps``).
 """
 
 from __future__ import annotations
@@ -26,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 import sympy as sp
 
-from ._errors import JaxskidError, RequestError, ShapeError
+from ._errors import RequestError, ShapeError
 from ._model import Robot, symbol
 
 _SIGNATURES = {
@@ -323,48 +319,3 @@ def recursive_dynamics(robot: Robot) -> RecursiveDynamics:
         revolute=tuple(t == "revolute" for t in robot.joint_types),
         model=_model_function(robot),
     )
-
-
-# ---------------------------------------------------------------------------------------------- forward dynamics
-class ConditioningError(JaxskidError, ArithmeticError):
-    """A mass matrix is too ill-conditioned for its forward dynamics to carry any correct digit."""
-
-
-def condition_number(m) -> jax.Array:
-    """2-norm condition number of symmetric positive definite matrices ``(..., n, n)``: ``lambda_max /
-    lambda_min``; ``inf`` when the smallest eigenvalue is not positive (M not numerically positive definite)."""
-    ev = jnp.linalg.eigvalsh(m)
-    lo, hi = ev[..., 0], ev[..., -1]
-    return jnp.where(lo > 0, hi / jnp.where(lo > 0, lo, 1), jnp.inf)
-
-
-def forward_dynamics(m, rhs) -> tuple[jax.Array, jax.Array]:
-    """``qdd = M^-1 rhs`` (rhs = tau - C qd - Q_grav) by Cholesky, and ``cond(M)`` with it.
-
-    Shapes: ``m`` (n, n), ``rhs`` (n,) -> ``(qdd (n,), cond ())``. The relative error of qdd is bounded by about
-    ``cond(M) * n * eps`` (Higham 2002, Thm. 10.4 and eq. (7.4)); check it with :func:`check_conditioning`
-    outside ``jit``, or mask the states whose ``cond`` is too large.
-    """
-    chol = jax.scipy.linalg.cho_factor(m, lower=True)
-    qdd = jax.scipy.linalg.cho_solve(chol, rhs)
-    return qdd, condition_number(m)
-
-
-def check_conditioning(m, *, max_digits_lost: float | None = None) -> np.ndarray:
-    """The condition numbers of mass matrices ``(..., n, n)``; raises :class:`ConditioningError` if any is
-    so large that a solve loses every digit of the precision of ``m`` (``cond * eps >= 1``) or more than
-    ``max_digits_lost`` digits."""
-    m = np.asarray(m)
-    cond = np.asarray(condition_number(jnp.asarray(m)))
-    eps = float(np.finfo(m.dtype).eps)
-    limit = 1.0 / eps if max_digits_lost is None else min(1.0 / eps, 10.0**max_digits_lost)
-    bad = ~(cond < limit)
-    if np.any(bad):
-        worst = float(np.max(np.where(np.isfinite(cond), cond, np.inf)))
-        where = np.argwhere(bad)[0].tolist() if bad.ndim else []
-        raise ConditioningError(
-            f"mass matrix {'at index ' + str(where) + ' ' if where else ''}is ill-conditioned: cond(M) = {worst:.3g} "
-            f"(expected below {limit:.3g} for {m.dtype}); a forward-dynamics solve would lose all "
-            f"{'requested ' if max_digits_lost is not None else ''}digits"
-        )
-    return cond

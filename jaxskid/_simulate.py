@@ -227,10 +227,11 @@ def mass_matrix_condition(dyn: Dynamics, q, params=None) -> jax.Array:
 # ---------------------------------------------------------------------------------------- integrators
 @dataclass(frozen=True)
 class SemiImplicitEuler:
-    """Symplectic (semi-implicit) Euler: ``qd' = qd + dt qdd(q, qd)``, ``q' = q + dt qd'``. Order 1.
+    """Semi-implicit Euler: ``qd' = qd + dt qdd(q, qd)``, ``q' = q + dt qd'``. Order 1.
 
-    Other states (a controller's) take an explicit Euler step. Hairer, Lubich & Wanner, "Geometric
-    Numerical Integration" (2006), sec. VI.3.
+    The velocity is updated first and the position with the new velocity; other states (a controller's)
+    take an explicit Euler step. It is symplectic when the mass matrix is constant (Hairer, Lubich & Wanner,
+    "Geometric Numerical Integration", 2006, sec. VI.3), not for a configuration-dependent M.
     """
 
     order = 1

@@ -88,7 +88,7 @@ def emit_c(layout: Layout) -> dict[str, str]:
         h.append(f"#define {S}_{k.name.upper()}_SIZE {k.size}")
     h.append("")
     if n_par:
-        h += [f"/* Parameter names and default values, in the order of p (NAN: no default). */",
+        h += ["/* Parameter names and default values, in the order of p (NAN: no default). */",
               f"extern const char *const {s}_parameter_names[{S}_N_PARAMS];",
               f"extern const double {s}_default_params[{S}_N_PARAMS];", ""]
     for k in layout.kernels:

@@ -97,6 +97,11 @@ class Layout:
         d = self.robot.default_params()
         return tuple(float(d.get(k, math.nan)) for k in self.parameters)
 
+    @property
+    def uses_wrench(self) -> bool:
+        """Whether a quantity takes an (n_ee, 6) wrench argument."""
+        return any(len(self.arg_shape(a)) == 2 for k in self.kernels for a in k.args)
+
     def arg_shape(self, arg: str) -> tuple[int, ...]:
         return (len(self.parameters),) if arg == "p" else tuple(self.eqs.arguments[arg].shape)
 
@@ -145,8 +150,8 @@ class Layout:
             arg = self.eqs.arguments[a]
             what = f"{arg.doc}, in joint order" if arg.shape == (r.n_dof,) else arg.doc
             lines.append(f"  {a:<6} {_shape_str(arg.shape):<8} {what}")
-            if a == "wrench":
-                lines.append(f"         end-effectors (rows): {', '.join(r.end_effectors)}")
+            if len(arg.shape) == 2:
+                lines.append(f"         one row (moment, force) per end-effector: {', '.join(r.end_effectors)}")
         lines.append(f"  joint order: {joints}")
         lines.append(f"  {'p':<6} {_shape_str((len(self.parameters),)):<8} parameters, in this order (default value):")
         for i, (name, value) in enumerate(zip(self.parameters, self.defaults)):

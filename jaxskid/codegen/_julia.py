@@ -31,7 +31,8 @@ def emit_julia(layout: Layout) -> dict[str, str]:
     r = layout.robot
     calling = [
         f"Use: include(\"{s}.jl\"); using .{s}",
-        "Call: name(q, ..., p=DEFAULT_PARAMS) -> Array of the shape above; wrench is an n_ee x 6 matrix.",
+        "Call: name(q, ..., p=DEFAULT_PARAMS) -> Array of the shape above"
+        + ("; wrenches are n_ee x 6 matrices." if layout.uses_wrench else "."),
         "The numbered parameter list above is 1-based, as p[k] in Julia.",
     ]
     printer = JuliaPrinter()

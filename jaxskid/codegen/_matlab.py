@@ -30,8 +30,9 @@ def _size(shape) -> str:
 def emit_matlab(layout: Layout) -> dict[str, str]:
     s = layout.stem
     calling = [
-        f"Call: out = {s}_<quantity>(q, ..., p); leave p out for {s}_default_params(). Vectors are columns;",
-        "wrench is an n_ee x 6 matrix. The numbered parameter list above is 1-based, as p(k).",
+        f"Call: out = {s}_<quantity>(q, ..., p); leave p out for {s}_default_params(). Vectors are columns"
+        + ("; wrenches are n_ee x 6 matrices." if layout.uses_wrench else "."),
+        "The numbered parameter list above is 1-based, as p(k).",
     ]
     head = comment(layout.header("Matlab/Octave", calling, base=1), "%")
     printer = OctavePrinter()

@@ -1,0 +1,497 @@
+"""Speed against accuracy for every option a user can choose: Panda (7 DOF) and the 12-DOF quadruped.
+
+    python benchmarks/tradeoff.py [--batch 16384] [--repeats 7] [--limit 45] [--out benchmarks/out]
+
+For each setting (CSE strategy, simplification, trig handling, closed form or the numeric recursive
+evaluation in JAX of ``jaxskid._recursive``; float64 and float32) it measures:
+
+* derive + print time (``jaxskid.lower`` on an empty cache) and the operation count, in a fresh process
+  with a time limit (``--limit`` s): a setting that does not finish is reported as such;
+* XLA compile time, and the batched time per state (``jax.vmap``, batch ``--batch``) of M, Q_grav and tau:
+  medians of ``--repeats`` calls, every compiled function of a robot interleaved with the others so that a
+  loaded machine slows them alike;
+* the error of M, Q_grav and tau: max over 32 states of the normwise relative error against a 50-digit
+  mpmath evaluation of the same symbolic expressions (``jaxskid._reference``; each option's own
+  expressions are checked to give the same 50-digit values), and against Pinocchio.
+
+Rollouts: jaxskid's forward dynamics (``qdd = M^-1 (tau - C qd - Q_grav)``, unrolled LDL^T) with tau = 0,
+from rest under gravity; jaxskid's semi-implicit Euler and RK4 at several step sizes, time per state and step, and the error of q at
+the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
+extrapolation from a second reference at twice its step).
+
+The table is printed and written to ``<out>/tradeoff.md``, the Pareto plot (time against error) to
+``<out>/tradeoff.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import multiprocessing as mp
+import os
+import platform
+import sys
+import tempfile
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+ROBOTS = {
+    "panda": (ERD / "panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
+    "quadruped": (ROOT / "robots" / "quadruped_12dof.yaml", None),
+}
+QUANTITIES = ("mass_matrix", "gravity_torques", "inverse_dynamics")
+SHORT = {"mass_matrix": "M", "gravity_torques": "Q_grav", "inverse_dynamics": "tau"}
+ARGS = {"mass_matrix": ("q",), "gravity_torques": ("q",), "inverse_dynamics": ("q", "qd", "qdd")}
+DTYPES = ("float64", "float32")
+N_ACCURACY = 32  # states for the error columns (the first states of the timing batch)
+MAX_OPS = 100_000  # a setting with more operations is derived but not compiled (XLA would take minutes)
+
+
+@dataclass(frozen=True)
+class Setting:
+    label: str
+    kind: str  # "closed" or "recursive"
+    options: dict
+
+
+SETTINGS = (
+    Setting("tape (default)", "closed", {}),
+    Setting("cse=sympy", "closed", {"cse": "sympy"}),
+    Setting("cse=none", "closed", {"cse": "none"}),
+    Setting("simplify=expand", "closed", {"simplify": "expand"}),
+    Setting("simplify=trigsimp", "closed", {"simplify": "trigsimp"}),
+    Setting("trig=inline", "closed", {"trig": "inline"}),
+    Setting("recursive JAX", "recursive", {}),
+)
+ROLLOUTS = (  # (integrator, step size in s, dtype)
+    ("semi-implicit Euler", 1e-3, "float64"),
+    ("semi-implicit Euler", 4e-3, "float64"),
+    ("semi-implicit Euler", 1.6e-2, "float64"),
+    ("RK4", 1e-3, "float64"),
+    ("RK4", 4e-3, "float64"),
+    ("RK4", 1.6e-2, "float64"),
+    ("RK4", 4e-3, "float32"),
+    ("semi-implicit Euler", 4e-3, "float32"),
+)
+HORIZON = 0.5  # s
+N_ROLLOUTS = 64
+
+
+# ---------------------------------------------------------------------------------------------- helpers
+def _setup_jax():
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    return jax
+
+
+def load_robot(key: str):
+    import jaxskid
+
+    path, lock = ROBOTS[key]
+    return jaxskid.load(path, lock=lock)
+
+
+def round_robin(calls: dict, repeats: int) -> dict:
+    """Median wall time of each call; the calls are interleaved so that a loaded machine slows them alike."""
+    for fn in calls.values():
+        fn()
+    times = {k: [] for k in calls}
+    for _ in range(repeats):
+        for k, fn in calls.items():
+            t = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t)
+    return {k: float(np.median(v)) for k, v in times.items()}
+
+
+def rel_err_max(got, ref_hi, ref_lo=None) -> float:
+    """Max over states of ||got - ref|| / ||ref|| (entries of one state flattened)."""
+    got = np.asarray(got, dtype=np.float64).reshape(len(ref_hi), -1)
+    hi = np.asarray(ref_hi).reshape(len(ref_hi), -1)
+    diff = got - hi if ref_lo is None else (got - hi) - np.asarray(ref_lo).reshape(len(ref_hi), -1)
+    return float(np.max(np.linalg.norm(diff, axis=1) / np.maximum(np.linalg.norm(hi, axis=1), 1e-300)))
+
+
+# ---------------------------------------------------------------------------------------------- child side
+def derive_setting(job: dict) -> dict:
+    """In a fresh process, under the time limit: derive + print one closed-form setting into the cache."""
+    _setup_jax()
+    import jaxskid
+    from jaxskid import _reference
+
+    robot = load_robot(job["robot"])
+    options = jaxskid.Options(**job["setting"].options)
+    t = time.perf_counter()
+    jaxskid.lower(robot, QUANTITIES, options=options, cache_dir=job["cache"])
+    out = {"derive": time.perf_counter() - t}
+    eqs = jaxskid.derive(robot, QUANTITIES, options=options)
+    out["ops"] = {q: eqs.operation_count([q]) for q in QUANTITIES}
+    if sum(out["ops"].values()) <= MAX_OPS:
+        # the option's own expressions at 50 digits equal the reference (of the default program)
+        own = _reference.mp_reference(eqs, QUANTITIES, job["states"], job["params"])
+        out["same_expressions"] = max(rel_err_max(own[q].hi, job["ref"][q][0][:2]) for q in QUANTITIES)
+    return out
+
+
+def _child(conn, fn_name, job):
+    try:
+        result = globals()[fn_name](job)
+        conn.send(("ok", result))
+    except Exception:  # noqa: BLE001 - reported in the table
+        conn.send(("error", traceback.format_exc(limit=3)))
+    finally:
+        conn.close()
+
+
+def run_limited(fn_name: str, job: dict, limit: float) -> tuple[str, object, float]:
+    """Run ``fn_name(job)`` in a fresh process; ("ok", result) or ("timeout" | "error", message)."""
+    ctx = mp.get_context("spawn")
+    parent, child = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(child, fn_name, job), daemon=True)
+    t = time.perf_counter()
+    proc.start()
+    child.close()
+    status, result = "timeout", None
+    if parent.poll(limit):
+        try:
+            status, result = parent.recv()
+        except EOFError:
+            status, result = "error", "the worker exited without a result"
+    if proc.is_alive():
+        proc.kill()
+    proc.join()
+    return status, result, time.perf_counter() - t
+
+
+# ---------------------------------------------------------------------------------------------- parent side
+def references(key: str, states: dict):
+    """(robot, params, 50-digit reference of the default program, Pinocchio values) at the accuracy states."""
+    import pinocchio as pin
+
+    import jaxskid
+    from jaxskid import _reference
+
+    robot = load_robot(key)
+    params = np.array([robot.default_params()[k] for k in robot.parameters])
+    eqs = jaxskid.derive(robot, QUANTITIES)
+    assert eqs.parameters == robot.parameters
+    acc = {k: v[:N_ACCURACY] for k, v in states.items()}
+    ref = _reference.mp_reference(eqs, QUANTITIES, acc, params)
+    if key == "panda":
+        path, lock = ROBOTS[key]
+        full = pin.buildModelFromUrdf(str(path))
+        model = pin.buildReducedModel(full, [full.getJointId(j) for j in lock], pin.neutral(full))
+    else:
+        sys.path.insert(0, str(ROOT / "tests"))
+        from pinref import to_pinocchio
+
+        model, _ = to_pinocchio(robot, robot.default_params())
+    data = model.createData()
+    pins = {q: [] for q in QUANTITIES}
+    for k in range(N_ACCURACY):
+        q, qd, qdd = (acc[a][k] for a in ("q", "qd", "qdd"))
+        m = pin.crba(model, data, q)
+        pins["mass_matrix"].append(np.triu(m) + np.triu(m, 1).T)
+        pins["gravity_torques"].append(pin.computeGeneralizedGravity(model, data, q).copy())
+        pins["inverse_dynamics"].append(pin.rnea(model, data, q, qd, qdd).copy())
+    return robot, params, {q: (ref[q].hi, ref[q].lo) for q in QUANTITIES}, {q: np.array(v) for q, v in pins.items()}
+
+
+def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: str, repeats: int) -> list[dict]:
+    """Compile every setting that was derived (and the recursive evaluation) in both dtypes; errors at the
+    accuracy states; batched times, interleaved."""
+    jax = _setup_jax()
+    import jax.numpy as jnp
+
+    import jaxskid
+    from jaxskid._recursive import recursive_dynamics
+
+    rows, sources = [], {}
+    for setting in SETTINGS:
+        row = {"robot": key, "setting": setting.label, "status": "ok", "compile": {}, "err_mp": {}, "err_pin": {}}
+        if setting.kind == "recursive":
+            t = time.perf_counter()
+            sources[setting.label] = recursive_dynamics(robot)
+            row.update(derive=time.perf_counter() - t, ops=None)
+        else:
+            status, result, wall = derived[setting.label]
+            row["status"] = status
+            if status == "ok":
+                row.update(derive=result["derive"], ops=result["ops"])
+                if sum(result["ops"].values()) > MAX_OPS:
+                    row["status"] = "too large"
+                else:
+                    sources[setting.label] = jaxskid.lower(robot, QUANTITIES, options=jaxskid.Options(**setting.options),
+                                                           cache_dir=cache)
+            else:
+                row["message"] = result
+        rows.append(row)
+    calls = {}
+    for row in rows:
+        if row["setting"] not in sources:
+            continue
+        source = sources[row["setting"]]
+        for dtype in DTYPES:
+            p = jnp.asarray(params, dtype=dtype)
+            for q in QUANTITIES:
+                args = [jnp.asarray(states[a], dtype=dtype) for a in ARGS[q]]
+                f = jax.jit(jax.vmap(source.raw(q), in_axes=(*([0] * len(args)), None)))
+                t = time.perf_counter()
+                compiled = f.lower(*args, p).compile()
+                row["compile"][dtype, q] = time.perf_counter() - t
+                value = np.asarray(compiled(*args, p))[:N_ACCURACY]
+                row["err_mp"][dtype, q] = rel_err_max(value, *ref[q])
+                row["err_pin"][dtype, q] = rel_err_max(value, pins[q])
+                calls[row["setting"], dtype, q] = (lambda c=compiled, a=args, p=p: c(*a, p).block_until_ready())
+        print(f"  compiled {row['setting']:20s} ({sum(row['compile'].values()):.1f} s)", flush=True)
+    times = round_robin(calls, repeats)
+    batch = len(states["q"])
+    for row in rows:
+        row["time"] = {(d, q): times[s, d, q] / batch for (s, d, q) in times if s == row["setting"]}
+    return rows
+
+
+def rollouts(robot, q0, params, repeats: int, cache: str) -> dict:
+    """Passive rollouts from rest with jaxskid's forward dynamics and integrators: time per state and step, and
+    the error of q at the horizon. The step size and the number of steps are traced, so one executable per
+    integrator and dtype serves every step size."""
+    jax = _setup_jax()
+    import jax.numpy as jnp
+    from jax import lax
+
+    import jaxskid
+    from jaxskid._simulate import accelerations
+
+    dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"], cache_dir=cache)
+    qdd = accelerations(dyn)  # M^-1 (tau - C qd - Q_grav) by an unrolled LDL^T solve
+    integrators = {"RK4": jaxskid.RK4(), "semi-implicit Euler": jaxskid.SemiImplicitEuler()}
+    compiled = {}
+
+    def run(integrator: str, dt: float, dtype: str):
+        """(final q of every rollout, a call that repeats the rollouts, the number of steps)"""
+        if (integrator, dtype) not in compiled:
+            method = integrators[integrator]
+
+            def one(q_start, p, h, steps):
+                def f(t, y):
+                    q, qd, z = y
+                    return (qd, qdd(q, qd, jnp.zeros_like(q), p), ()), None
+
+                body = lambda _, y: method.step(f, 0.0, y, h)[0]  # noqa: E731
+                return lax.fori_loop(0, steps, body, (q_start, jnp.zeros_like(q_start), ()))[0]
+
+            f = jax.jit(jax.vmap(one, in_axes=(0, None, None, None)))
+            example = (jnp.asarray(q0, dtype=dtype), jnp.asarray(params, dtype=dtype), jnp.asarray(dt, dtype=dtype),
+                       jnp.asarray(1, dtype=jnp.int32))
+            compiled[integrator, dtype] = f.lower(*example).compile()
+        steps = int(round(HORIZON / dt))
+        inputs = (jnp.asarray(q0, dtype=dtype), jnp.asarray(params, dtype=dtype), jnp.asarray(dt, dtype=dtype),
+                  jnp.asarray(steps, dtype=jnp.int32))
+        c = compiled[integrator, dtype]
+        return np.asarray(c(*inputs), dtype=np.float64), (lambda: c(*inputs).block_until_ready()), steps
+
+    dt_ref = min(dt for _, dt, _ in ROLLOUTS) / 8
+    reference, _, _ = run("RK4", dt_ref, "float64")
+    coarse, _, _ = run("RK4", 2 * dt_ref, "float64")
+    out = {"reference_error": float(np.max(np.abs(coarse - reference))) / 15,  # Richardson, RK4: 2^4 - 1
+           "dt_ref": dt_ref, "rows": []}
+    calls, steps_of = {}, {}
+    for integrator, dt, dtype in ROLLOUTS:
+        final, call, steps = run(integrator, dt, dtype)
+        calls[integrator, dt, dtype] = call
+        steps_of[integrator, dt, dtype] = steps
+        out["rows"].append({"integrator": integrator, "dt": dt, "dtype": dtype,
+                            "err": float(np.max(np.abs(final - reference)))})
+    times = round_robin(calls, repeats)
+    for row in out["rows"]:
+        k = (row["integrator"], row["dt"], row["dtype"])
+        row["time"] = times[k] / (len(q0) * steps_of[k])
+    return out
+
+
+def fmt_time(s: float) -> str:
+    ns = s * 1e9
+    return f"{ns:.0f}" if ns >= 100 else f"{ns:.1f}"
+
+
+def fmt_err(e: float) -> str:
+    return f"{e:.1e}"
+
+
+def table(results: list[dict], rollout_results: dict, args) -> str:
+    q_cols = " | ".join(f"{SHORT[q]} ns/state | {SHORT[q]} err mp | {SHORT[q]} err pin" for q in QUANTITIES)
+    lines = [
+        "# jaxskid speed-accuracy trade-off",
+        "",
+        f"jax {importlib.metadata.version('jax')}, pinocchio {importlib.metadata.version('pin')}, "
+        f"{platform.machine()}, {os.cpu_count()} CPUs; batch {args.batch}, median of {args.repeats} interleaved "
+        f"repeats. Errors: max over {N_ACCURACY} states of the normwise relative error against the 50-digit mpmath "
+        "value of the same expressions (mp) and against Pinocchio (pin). Derive = derive + print (`jaxskid.lower` "
+        "on an empty cache; for the recursive evaluation, building it); compile = XLA, all three quantities, "
+        "this dtype.",
+        "",
+        f"| robot | setting | dtype | derive s | ops M/Q_grav/tau | compile s | {q_cols} |",
+        "|" + "---|" * (6 + 3 * len(QUANTITIES)),
+    ]
+    blank = " |" * (3 * len(QUANTITIES))
+    for r in results:
+        ops = "/".join(str(r["ops"][q]) for q in QUANTITIES) if r.get("ops") else "-"
+        if r["status"] != "ok":
+            if r["status"] == "timeout":
+                why = f"did not finish in {args.limit:g} s"
+            elif r["status"] == "too large":
+                why = f"derived in {r['derive']:.1f} s, not compiled: over {MAX_OPS} operations"
+            else:
+                why = "failed: " + str(r.get("message", "")).strip().splitlines()[-1]
+            lines.append(f"| {r['robot']} | {r['setting']} | - | {why} | {ops} | - |{blank}")
+            continue
+        for dtype in DTYPES:
+            cells = []
+            for q in QUANTITIES:
+                cells += [fmt_time(r["time"][dtype, q]), fmt_err(r["err_mp"][dtype, q]), fmt_err(r["err_pin"][dtype, q])]
+            compile_s = sum(r["compile"][dtype, q] for q in QUANTITIES)
+            lines.append(f"| {r['robot']} | {r['setting']} | {dtype} | {r['derive']:.2f} | {ops} | {compile_s:.1f} | "
+                         + " | ".join(cells) + " |")
+    lines += ["", f"Rollouts: jaxskid's forward dynamics qdd = M^-1 (-C qd - Q_grav) (unrolled LDL^T, tau = 0) and integrators, from rest at "
+              f"{N_ROLLOUTS} states q0 ~ U(-1, 1), horizon {HORIZON} s, closed form (default options). Error = max "
+              "|q(T) - q_ref(T)| in rad against RK4 at the reference step; the reference's own error is estimated "
+              "by Richardson extrapolation. Time per state and step.", "",
+              "| robot | integrator | step s | dtype | ns per state-step | error (rad) | reference step s | reference error |",
+              "|---|---|---|---|---|---|---|---|"]
+    for key, res in rollout_results.items():
+        for row in res["rows"]:
+            lines.append(f"| {key} | {row['integrator']} | {row['dt']:g} | {row['dtype']} | {fmt_time(row['time'])} | "
+                         f"{row['err']:.1e} | {res['dt_ref']:g} | {res['reference_error']:.1e} |")
+    return "\n".join(lines) + "\n"
+
+
+def pareto(points):
+    """Indices of the points not dominated in (time, error), by increasing time."""
+    order = sorted(range(len(points)), key=lambda k: (points[k][0], points[k][1]))
+    front, best = [], np.inf
+    for k in order:
+        if points[k][1] < best:
+            front.append(k)
+            best = points[k][1]
+    return front
+
+
+def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    robots = list(dict.fromkeys(r["robot"] for r in results))
+    fig, axes = plt.subplots(len(robots), len(QUANTITIES) + 1, figsize=(19, 4.4 * len(robots) + 0.8), squeeze=False)
+    colors = {s.label: plt.cm.tab10(k) for k, s in enumerate(SETTINGS)}
+    markers = {"float64": "o", "float32": "^"}
+    floor = 1e-17  # errors of exactly zero are drawn here
+    for row, key in enumerate(robots):
+        for col, q in enumerate(QUANTITIES):
+            ax = axes[row][col]
+            pts = []
+            for r in results:
+                if r["robot"] != key or r["status"] != "ok":
+                    continue
+                for dtype in DTYPES:
+                    t, e = r["time"][dtype, q] * 1e9, max(r["err_mp"][dtype, q], floor)
+                    ax.scatter(t, e, color=colors[r["setting"]], marker=markers[dtype], s=45, zorder=3,
+                               label=f"{r['setting']}, {dtype}")
+                    pts.append((t, e))
+            front = pareto(pts)
+            if front:
+                ax.step([pts[k][0] for k in front], [pts[k][1] for k in front], where="post", color="0.5", lw=1, zorder=2)
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel("ns per state (vmap, batched)")
+            ax.set_ylabel("max rel. error vs 50-digit mpmath")
+            ax.set_title(f"{key}: {SHORT[q]}")
+            ax.grid(True, which="both", alpha=0.3)
+        ax = axes[row][-1]
+        res = rollout_results.get(key)
+        if res:
+            for integrator, color in (("semi-implicit Euler", "tab:orange"), ("RK4", "tab:blue")):
+                for dtype in DTYPES:
+                    rr = [x for x in res["rows"] if x["integrator"] == integrator and x["dtype"] == dtype]
+                    if not rr:
+                        continue
+                    xs, ys = [x["time"] * 1e9 for x in rr], [max(x["err"], floor) for x in rr]
+                    ax.plot(xs, ys, marker=markers[dtype], color=color, ls="-" if dtype == "float64" else "none",
+                            label=f"{integrator}, {dtype}")
+                    for x, y, r in zip(xs, ys, rr):
+                        ax.annotate(f"{r['dt'] * 1e3:g} ms", (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.legend(fontsize=7)
+        ax.set_xlabel("ns per state and step")
+        ax.set_ylabel(f"max |q(T) - q_ref(T)| (rad), T = {HORIZON} s")
+        ax.set_title(f"{key}: rollouts (step size annotated)")
+        ax.grid(True, which="both", alpha=0.3)
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    seen = dict(zip(labels, handles))
+    fig.legend(seen.values(), seen.keys(), loc="lower center", ncol=5, fontsize=8)
+    fig.suptitle("jaxskid: batched time per state against error (grey: Pareto front; circles float64, triangles float32)")
+    fig.tight_layout(rect=(0, 0.08, 1, 0.97))
+    fig.savefig(path, dpi=110)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--batch", type=int, default=16384)
+    ap.add_argument("--repeats", type=int, default=7)
+    ap.add_argument("--limit", type=float, default=45.0, help="seconds to derive one setting before it counts as not finished")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
+    ap.add_argument("--robots", default=",".join(ROBOTS))
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    _setup_jax()
+    start = time.perf_counter()
+    results, rollout_results = [], {}
+    with tempfile.TemporaryDirectory() as cache:
+        for key in args.robots.split(","):
+            robot = load_robot(key)
+            n = robot.n_dof
+            rng = np.random.default_rng(0)
+            # float32-representable states, so that both dtypes see the same inputs
+            states = {a: rng.uniform(-1.5, 1.5, size=(args.batch, n)).astype(np.float32).astype(np.float64)
+                      for a in ("q", "qd", "qdd")}
+            t = time.perf_counter()
+            robot, params, ref, pins = references(key, states)
+            print(f"{key}: {n} DOF, {len(params)} parameters; 50-digit reference and Pinocchio at {N_ACCURACY} states "
+                  f"in {time.perf_counter() - t:.1f} s", flush=True)
+            derived = {}
+            two = {k: v[:2] for k, v in states.items()}
+            for setting in SETTINGS:
+                if setting.kind != "closed":
+                    continue
+                job = {"robot": key, "setting": setting, "states": two, "params": params, "ref": ref, "cache": cache}
+                status, result, wall = run_limited("derive_setting", job, args.limit)
+                derived[setting.label] = (status, result, wall)
+                note = status if status != "error" else result.strip().splitlines()[-1]
+                print(f"  derived {setting.label:20s} {note} ({wall:.1f} s)", flush=True)
+                if status == "ok" and result.get("same_expressions", 0.0) > 1e-30:
+                    raise AssertionError(f"{key} {setting.label}: the option changed the function "
+                                         f"({result['same_expressions']:.3g} at 50 digits)")
+            results += measure(key, robot, states, params, ref, pins, derived, cache, args.repeats)
+            t = time.perf_counter()
+            q0 = np.random.default_rng(1).uniform(-1, 1, size=(N_ROLLOUTS, n))
+            rollout_results[key] = rollouts(robot, q0, params, max(3, args.repeats // 2), cache)
+            print(f"  rollouts ({time.perf_counter() - t:.1f} s)", flush=True)
+    text = table(results, rollout_results, args)
+    print()
+    print(text)
+    (args.out / "tradeoff.md").write_text(text)
+    plot(results, rollout_results, args.out / "tradeoff.png")
+    print(f"wrote {args.out / 'tradeoff.md'} and {args.out / 'tradeoff.png'} in {time.perf_counter() - start:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
