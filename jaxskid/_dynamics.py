@@ -161,5 +161,15 @@ class Dynamics:
         )
         return fn
 
+    def forward_dynamics(self, q, qd, tau, params=None, wrench=None):
+        """``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext)`` by a Cholesky-type solve.
+
+        Needs ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``)
+        to have been lowered; see :func:`jaxskid.forward_dynamics`.
+        """
+        from ._simulate import forward_dynamics
+
+        return forward_dynamics(self, q, qd, tau, params, wrench)
+
     def __repr__(self) -> str:
         return f"Dynamics({self.robot_name!r}, n_dof={self.n_dof}, quantities={list(self.quantities)})"
