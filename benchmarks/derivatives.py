@@ -80,26 +80,24 @@ def chain_rule(eqs: Equations, names: dict[str, str], prefix: str) -> Equations:
                                _index={})
 
 
-def derive_chain(robot) -> tuple[Equations, dict[int, float]]:
-    times = {}
+def derive_chain(robot) -> tuple[dict[int, Equations], dict[int, float]]:
+    """The second derivatives differentiate the first-derivative program, so their time includes it."""
+    eqs, times = {}, {}
     t = time.perf_counter()
-    eqs = jaxskid.derive(robot, list(BASES))
-    eqs = chain_rule(eqs, {b: b + "_dot" for b in BASES}, "_y")
+    eqs[1] = chain_rule(jaxskid.derive(robot, list(BASES)), {b: b + "_dot" for b in BASES}, "_y")
     times[1] = time.perf_counter() - t
-    t = time.perf_counter()
-    eqs = chain_rule(eqs, {b + "_dot": b + "_ddot" for b in BASES}, "_z")
-    times[2] = time.perf_counter() - t + times[1]
+    eqs[2] = chain_rule(eqs[1], {b + "_dot": b + "_ddot" for b in BASES}, "_z")
+    times[2] = time.perf_counter() - t
     return eqs, times
 
 
-def derive_closed(robot) -> tuple[Equations, dict[int, float]]:
-    times = {}
-    t = time.perf_counter()
-    jaxskid.derive(robot, [b + SUFFIX[1] for b in BASES])
-    times[1] = time.perf_counter() - t
-    t = time.perf_counter()
-    eqs = jaxskid.derive(robot, [b + s for b in BASES for s in SUFFIX.values()])
-    times[2] = time.perf_counter() - t
+def derive_closed(robot) -> tuple[dict[int, Equations], dict[int, float]]:
+    """Each order's set on its own (a fresh request), as a user would ask for it."""
+    eqs, times = {}, {}
+    for order, suffix in SUFFIX.items():
+        t = time.perf_counter()
+        eqs[order] = jaxskid.derive(robot, [b + suffix for b in BASES])
+        times[order] = time.perf_counter() - t
     return eqs, times
 
 
@@ -124,38 +122,32 @@ def skidy_style(robot, timeout: float) -> list[tuple[str, float, int]]:
 
 
 # ------------------------------------------------------------------------------------------ measuring
-def measure(robot, eqs: Equations, names: list[str], batch: int, repeats: int, options: dict, rng):
+def compile_set(robot, eqs: Equations, names: list[str], batch: int, options: dict | None):
+    """Lower (print + exec) and compile the named quantities, batched; returns the timings and callables."""
     t = time.perf_counter()
     ns = _load_source(module_source(eqs, names, "benchmark"), "<benchmark>")
     lower_s = time.perf_counter() - t
     n, n_ee = robot.n_dof, len(robot.end_effectors)
-    shapes = {a: (batch, n_ee, 6) if a.startswith("wrench") else (batch, n) for a in NEXT} | {"q4d": (batch, n)}
-    state = {a: rng.normal(size=s) for a, s in shapes.items()}
+    rng = np.random.default_rng(0)
+    state = {a: rng.normal(size=(batch, n_ee, 6) if a.startswith("wrench") else (batch, n)) for a in eqs.arguments}
     p = jax.numpy.asarray(np.array([robot.default_params()[k] for k in eqs.parameters]))
-    rows, outputs, compile_s = {}, {}, 0.0
+    calls, compile_s = {}, {}
     for name in names:
         args = eqs.quantities[name].args
         fn = jax.jit(jax.vmap(ns[name], in_axes=(*([0] * len(args)), None)), compiler_options=options)
         xs = [state[a] for a in args]
         t = time.perf_counter()
         compiled = fn.lower(*xs, p).compile()
-        c = time.perf_counter() - t
-        compile_s += c
-        outputs[name] = np.asarray(compiled(*xs, p))
-        times = []
-        for _ in range(repeats):
-            t = time.perf_counter()
-            compiled(*xs, p).block_until_ready()
-            times.append(time.perf_counter() - t)
-        rows[name] = (eqs.operation_count([name]), c, float(np.median(times)) / batch * 1e9)
-    return lower_s, compile_s, rows, outputs
+        compile_s[name] = time.perf_counter() - t
+        calls[name] = (lambda c=compiled, xs=xs: c(*xs, p).block_until_ready())
+    return lower_s, compile_s, calls
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robot", default="panda", choices=sorted(ROBOTS))
     ap.add_argument("--batch", type=int, default=4096)
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--emitters", default="classic", choices=("classic", "default"))
     ap.add_argument("--skidy", type=float, default=0.0, metavar="SECONDS",
                     help="also time Skidy's full-tree chain rule on the hopping leg (stop after SECONDS)")
@@ -164,23 +156,37 @@ def main():
     robot = ROBOTS[args.robot]()
     print(f"{robot.name}: {robot.n_dof} DOF, {len(robot.parameters)} symbolic parameters, batch {args.batch}, "
           f"jax {jax.__version__}, {args.emitters} XLA CPU emitters\n")
-    results = {}
+    sets = {}
     for route, derive in (("closed", derive_closed), ("chain", derive_chain)):
         eqs, derive_s = derive(robot)
         for order in (1, 2):
             names = [b + SUFFIX[order] for b in BASES]
-            rng = np.random.default_rng(0)
-            lower_s, compile_s, rows, outs = measure(robot, eqs, names, args.batch, args.repeats, options, rng)
-            results[route, order] = outs
-            total = derive_s[order] + lower_s + compile_s
-            print(f"[{route}, order {order}] derive {derive_s[order]:.1f} s (orders <= {order}), lower {lower_s:.1f} s, "
-                  f"compile {compile_s:.1f} s; derive + lower + compile {total:.1f} s")
-            for name, (ops, c, ns) in rows.items():
-                print(f"    {name:24s} {ops:7d} ops  compile {c:6.1f} s  {ns:10.0f} ns/state")
-            print()
+            lower_s, compile_s, calls = compile_set(robot, eqs[order], names, args.batch, options)
+            sets[route, order] = (eqs[order], names, derive_s[order], lower_s, compile_s, calls)
+    # throughput: every function once per round, rounds interleaved, so that load changes hit all alike
+    times = {(key, name): [] for key, s in sets.items() for name in s[1]}
+    for _ in range(args.repeats + 1):
+        for (key, name), ts in times.items():
+            t = time.perf_counter()
+            sets[key][5][name]()
+            ts.append(time.perf_counter() - t)
+    for (route, order), (eqs, names, d, lo, comp, calls) in sets.items():
+        total = d + lo + sum(comp.values())
+        print(f"[{route}, order {order}] derive {d:.1f} s, lower {lo:.1f} s, compile {sum(comp.values()):.1f} s; "
+              f"derive + lower + compile {total:.1f} s")
+        for name in names:
+            ns = float(np.median(times[(route, order), name][1:])) / args.batch * 1e9
+            print(f"    {name:24s} {eqs.operation_count([name]):7d} ops  compile {comp[name]:6.1f} s  {ns:9.0f} ns/state")
+        print()
+    print("set (5 quantities)       derive    lower  compile    total  ops (shared)")
+    for (route, order), (eqs, names, d, lo, comp, _) in sets.items():
+        c = sum(comp.values())
+        print(f"{route + ', order ' + str(order):22s} {d:7.1f}s {lo:7.1f}s {c:7.1f}s {d + lo + c:7.1f}s "
+              f"{eqs.operation_count(names):8d}")
+    print()
     for order in (1, 2):
-        for name in results["closed", order]:
-            a, b = results["closed", order][name], results["chain", order][name]
+        for name in sets["closed", order][1]:
+            a, b = (np.asarray(jax.jit(lambda: 0)() * 0 + sets[r, order][5][name]()) for r in ("closed", "chain"))
             err = np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)
             print(f"closed vs chain {name:24s} max relative difference {err:.1e}")
     if args.skidy:

@@ -119,7 +119,7 @@ class TimeDerivatives:
     def _weighted(self, i: int, values: list[Vec], k: int) -> list[Vec]:
         """``B_p = sum_{m >= p} C(k, m) c_{m,p} values[k - m]`` for p = 0..k."""
         return [
-            _combine((comb(k, m) * self.coefficients(i, m)[p], values[k - m]) for m in range(p, k + 1))
+            _combine((self.tape(comb(k, m) * self.coefficients(i, m)[p]), values[k - m]) for m in range(p, k + 1))
             for p in range(k + 1)
         ]
 
@@ -275,7 +275,8 @@ class TimeDerivatives:
         m = sp.zeros(n)
         for i in range(n):
             x = self.kin.screw(i)
-            jet = [self.tape.vec(inertia_apply(self.composite_inertia(i, r), x)) for r in range(k + 1)]
+            jet = [self.tape.vec(self.kin.apply_composite(i, x) if r == 0 else
+                                 inertia_apply(self.composite_inertia(i, r), x)) for r in range(k + 1)]
             m[i, i] = self.tape(dot(x, jet[k]))
             j = i
             while self.kin.robot.joints[j].parent >= 0:
@@ -493,7 +494,7 @@ for _k, _suffix, _word in ((1, "_dot", "First"), (2, "_ddot", "Second")):
 
 register(QuantitySpec(
     "body_twist", ("q", "qd"), _BODIES, lambda kin: _bodies(kin, kin.twist),
-    "V_i = Ad(C_i^-1) dC_i/dt, (omega, v)", "Body twist of every moving body, in its own frame.",
+    "V_i^ = C_i^-1 dC_i/dt, (omega, v)", "Body twist of every moving body, in its own frame.",
 ))
 register(QuantitySpec(
     "hybrid_twist", ("q", "qd"), _BODIES, lambda kin: _bodies(kin, lambda i: _body_hybrid_twist(kin, i)),

@@ -158,6 +158,7 @@ def request_key(robot: Robot, names: Sequence[str], options: Options | None = No
     h.update(robot.fingerprint().encode())
     h.update(repr(tuple(names)).encode())
     h.update(repr(options or Options()).encode())
+    h.update(repr(sorted(robot.default_params().items())).encode())  # the module's METADATA holds the defaults
     return h.hexdigest()
 
 

@@ -1,0 +1,66 @@
+"""Every example runs, and its key numbers are checked against what it claims.
+
+Each example's ``main(out_dir)`` returns its key numbers; the references are the truth it was simulated
+from, statistics (chi-square), statics, a Lyapunov function and a textbook closed form.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.stats
+import sympy as sp
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def load(name):
+    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.slow
+def test_identify_panda(tmp_path):
+    example = load("identify_panda")
+    out = example.main(tmp_path)
+    assert out["n_base"] == 43
+    assert out["mahalanobis"] < scipy.stats.chi2.ppf(0.999, 43)
+    np.testing.assert_allclose(out["noise_estimate"], example.NOISE, rtol=0.15)
+    assert out["wls_error"] < 0.1 and out["max_abs_z"] < 4.5
+    assert np.max(out["rms_validation"]) < 0.05  # Nm, a fraction of the measurement noise
+    assert out["physically_consistent"]
+    assert np.max(out["rms_physical"]) < 0.1
+    assert out["figure"].exists() and out["figure"].stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_batched_rollouts(tmp_path):
+    out = load("batched_rollouts").main(tmp_path, batch=1024)
+    assert out["max_final_speed"] < 1e-3
+    assert out["equilibrium_residual"] < 1e-3  # Nm: the arms came to rest where statics says
+    assert out["max_abs_error"][0] < 1e-6  # the waist carries no gravity load
+    assert np.all(out["mean_abs_error"][1:] > 5e-3)  # the others show the mass mismatch
+    assert out["figure"].exists()
+
+
+def test_adaptive_2r(tmp_path):
+    out = load("adaptive_2r").main(tmp_path)
+    per_5s = out["error_per_5s"]
+    assert per_5s[-1] < 1e-3 * per_5s[0]
+    assert np.max(out["parameter_error"]) < 5e-3
+    assert out["lyapunov_max_increase"] < 1e-9 * out["lyapunov_start"]
+    assert out["figure"].exists()
+
+
+def test_blog_3link(tmp_path):
+    out = load("blog_3link").main(tmp_path)
+    m3, l3, r, g, q2, q3 = sp.symbols("m3 l3 r g q2 q3", real=True)
+    assert sp.simplify(out["M33"] - m3 * (4 * l3**2 + 3 * r**2) / 12) == 0  # solid cylinder about its end
+    assert sp.simplify(out["Qgrav3"] + g * l3 * m3 * sp.cos(q2 + q3) / 2) == 0
+    assert out["energy_drift"] < 1e-6
+    assert out["figure"].exists()
