@@ -139,7 +139,7 @@ def compile_set(robot, eqs: Equations, names: list[str], batch: int, options: di
         t = time.perf_counter()
         compiled = fn.lower(*xs, p).compile()
         compile_s[name] = time.perf_counter() - t
-        calls[name] = (lambda c=compiled, xs=xs: c(*xs, p).block_until_ready())
+        calls[name] = lambda c=compiled, xs=xs: c(*xs, p).block_until_ready()  # returns the output
     return lower_s, compile_s, calls
 
 
@@ -176,7 +176,8 @@ def main():
               f"derive + lower + compile {total:.1f} s")
         for name in names:
             ns = float(np.median(times[(route, order), name][1:])) / args.batch * 1e9
-            print(f"    {name:24s} {eqs.operation_count([name]):7d} ops  compile {comp[name]:6.1f} s  {ns:9.0f} ns/state")
+            ops = eqs.operation_count([name])
+            print(f"    {name:24s} {ops:7d} ops  compile {comp[name]:6.1f} s  {ns:9.0f} ns/state")
         print()
     print("set (5 quantities)       derive    lower  compile    total  ops (shared)")
     for (route, order), (eqs, names, d, lo, comp, _) in sets.items():
@@ -186,7 +187,7 @@ def main():
     print()
     for order in (1, 2):
         for name in sets["closed", order][1]:
-            a, b = (np.asarray(jax.jit(lambda: 0)() * 0 + sets[r, order][5][name]()) for r in ("closed", "chain"))
+            a, b = (np.asarray(sets[route, order][5][name]()) for route in ("closed", "chain"))
             err = np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)
             print(f"closed vs chain {name:24s} max relative difference {err:.1e}")
     if args.skidy:

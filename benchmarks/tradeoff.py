@@ -14,9 +14,9 @@ evaluation in JAX of ``jaxskid._recursive``; float64 and float32) it measures:
   mpmath evaluation of the same symbolic expressions (``jaxskid._reference``; each option's own
   expressions are checked to give the same 50-digit values), and against Pinocchio.
 
-Rollouts: jaxskid's forward dynamics (``qdd = M^-1 (tau - C qd - Q_grav)``, unrolled LDL^T) with tau = 0,
-from rest under gravity; jaxskid's semi-implicit Euler and RK4 at several step sizes, time per state and step, and the error of q at
-the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
+Rollouts: ``jaxskid.rollout`` (forward dynamics ``qdd = M^-1 (tau - C qd - Q_grav)`` by an unrolled LDL^T
+solve) with tau = 0, from rest under gravity; semi-implicit Euler and RK4 at several step sizes, time per
+state and step, and the error of q at the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
 extrapolation from a second reference at twice its step).
 
 The table is printed and written to ``<out>/tradeoff.md``, the Pareto plot (time against error) to
@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
+    "cmeel.prefix/share/example-robot-data/robots"))
 ROBOTS = {
     "panda": (ERD / "panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
     "quadruped": (ROOT / "robots" / "quadruped_12dof.yaml", None),
@@ -228,8 +229,8 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
                 if sum(result["ops"].values()) > MAX_OPS:
                     row["status"] = "too large"
                 else:
-                    sources[setting.label] = jaxskid.lower(robot, QUANTITIES, options=jaxskid.Options(**setting.options),
-                                                           cache_dir=cache)
+                    options = jaxskid.Options(**setting.options)
+                    sources[setting.label] = jaxskid.lower(robot, QUANTITIES, options=options, cache_dir=cache)
             else:
                 row["message"] = result
         rows.append(row)
@@ -259,43 +260,26 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
 
 
 def rollouts(robot, q0, params, repeats: int, cache: str) -> dict:
-    """Passive rollouts from rest with jaxskid's forward dynamics and integrators: time per state and step, and
-    the error of q at the horizon. The step size and the number of steps are traced, so one executable per
-    integrator and dtype serves every step size."""
-    jax = _setup_jax()
-    import jax.numpy as jnp
-    from jax import lax
-
+    """Passive rollouts from rest with ``jaxskid.rollout`` (forward dynamics by an unrolled LDL^T solve, the
+    trajectory stored): time per state and step, and the error of q at the horizon."""
+    _setup_jax()
     import jaxskid
-    from jaxskid._simulate import accelerations
 
     dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"], cache_dir=cache)
-    qdd = accelerations(dyn)  # M^-1 (tau - C qd - Q_grav) by an unrolled LDL^T solve
     integrators = {"RK4": jaxskid.RK4(), "semi-implicit Euler": jaxskid.SemiImplicitEuler()}
-    compiled = {}
+    n = robot.n_dof
+    x0 = np.concatenate([q0, np.zeros_like(q0)], axis=1)
 
     def run(integrator: str, dt: float, dtype: str):
         """(final q of every rollout, a call that repeats the rollouts, the number of steps)"""
-        if (integrator, dtype) not in compiled:
-            method = integrators[integrator]
-
-            def one(q_start, p, h, steps):
-                def f(t, y):
-                    q, qd, z = y
-                    return (qd, qdd(q, qd, jnp.zeros_like(q), p), ()), None
-
-                body = lambda _, y: method.step(f, 0.0, y, h)[0]  # noqa: E731
-                return lax.fori_loop(0, steps, body, (q_start, jnp.zeros_like(q_start), ()))[0]
-
-            f = jax.jit(jax.vmap(one, in_axes=(0, None, None, None)))
-            example = (jnp.asarray(q0, dtype=dtype), jnp.asarray(params, dtype=dtype), jnp.asarray(dt, dtype=dtype),
-                       jnp.asarray(1, dtype=jnp.int32))
-            compiled[integrator, dtype] = f.lower(*example).compile()
         steps = int(round(HORIZON / dt))
-        inputs = (jnp.asarray(q0, dtype=dtype), jnp.asarray(params, dtype=dtype), jnp.asarray(dt, dtype=dtype),
-                  jnp.asarray(steps, dtype=jnp.int32))
-        c = compiled[integrator, dtype]
-        return np.asarray(c(*inputs), dtype=np.float64), (lambda: c(*inputs).block_until_ready()), steps
+        x, u, p = x0.astype(dtype), np.zeros((steps, n), dtype=dtype), np.asarray(params, dtype=dtype)
+
+        def call():
+            return jaxskid.rollout(dyn, x, u, dt, steps, integrators[integrator], p).x.block_until_ready()
+
+        final = np.asarray(call()[:, -1, :n], dtype=np.float64)
+        return final, call, steps
 
     dt_ref = min(dt for _, dt, _ in ROLLOUTS) / 8
     reference, _, _ = run("RK4", dt_ref, "float64")
@@ -355,15 +339,18 @@ def table(results: list[dict], rollout_results: dict, args) -> str:
         for dtype in DTYPES:
             cells = []
             for q in QUANTITIES:
-                cells += [fmt_time(r["time"][dtype, q]), fmt_err(r["err_mp"][dtype, q]), fmt_err(r["err_pin"][dtype, q])]
+                cells += [fmt_time(r["time"][dtype, q]), fmt_err(r["err_mp"][dtype, q]),
+                          fmt_err(r["err_pin"][dtype, q])]
             compile_s = sum(r["compile"][dtype, q] for q in QUANTITIES)
             lines.append(f"| {r['robot']} | {r['setting']} | {dtype} | {r['derive']:.2f} | {ops} | {compile_s:.1f} | "
                          + " | ".join(cells) + " |")
-    lines += ["", f"Rollouts: jaxskid's forward dynamics qdd = M^-1 (-C qd - Q_grav) (unrolled LDL^T, tau = 0) and integrators, from rest at "
+    lines += ["", "Rollouts: `jaxskid.rollout` (qdd = M^-1 (-C qd - Q_grav) by unrolled LDL^T, tau = 0, trajectory "
+              "stored), from rest at "
               f"{N_ROLLOUTS} states q0 ~ U(-1, 1), horizon {HORIZON} s, closed form (default options). Error = max "
               "|q(T) - q_ref(T)| in rad against RK4 at the reference step; the reference's own error is estimated "
               "by Richardson extrapolation. Time per state and step.", "",
-              "| robot | integrator | step s | dtype | ns per state-step | error (rad) | reference step s | reference error |",
+              "| robot | integrator | step s | dtype | ns per state-step | error (rad) | reference step s "
+              "| reference error |",
               "|---|---|---|---|---|---|---|---|"]
     for key, res in rollout_results.items():
         for row in res["rows"]:
@@ -388,6 +375,7 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     robots = list(dict.fromkeys(r["robot"] for r in results))
     fig, axes = plt.subplots(len(robots), len(QUANTITIES) + 1, figsize=(19, 4.4 * len(robots) + 0.8), squeeze=False)
@@ -408,9 +396,11 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
                     pts.append((t, e))
             front = pareto(pts)
             if front:
-                ax.step([pts[k][0] for k in front], [pts[k][1] for k in front], where="post", color="0.5", lw=1, zorder=2)
+                ax.step([pts[k][0] for k in front], [pts[k][1] for k in front], where="post", color="0.5", lw=1,
+                        zorder=2)
             ax.set_xscale("log")
             ax.set_yscale("log")
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.set_xlabel("ns per state (vmap, batched)")
             ax.set_ylabel("max rel. error vs 50-digit mpmath")
             ax.set_title(f"{key}: {SHORT[q]}")
@@ -427,7 +417,8 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
                     ax.plot(xs, ys, marker=markers[dtype], color=color, ls="-" if dtype == "float64" else "none",
                             label=f"{integrator}, {dtype}")
                     for x, y, r in zip(xs, ys, rr):
-                        ax.annotate(f"{r['dt'] * 1e3:g} ms", (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
+                        ax.annotate(f"{r['dt'] * 1e3:g} ms", (x, y), fontsize=7, xytext=(3, 3),
+                                    textcoords="offset points")
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.legend(fontsize=7)
@@ -438,7 +429,8 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
     handles, labels = axes[0][0].get_legend_handles_labels()
     seen = dict(zip(labels, handles))
     fig.legend(seen.values(), seen.keys(), loc="lower center", ncol=5, fontsize=8)
-    fig.suptitle("jaxskid: batched time per state against error (grey: Pareto front; circles float64, triangles float32)")
+    fig.suptitle("jaxskid: batched time per state against error "
+                 "(grey: Pareto front; circles float64, triangles float32)")
     fig.tight_layout(rect=(0, 0.08, 1, 0.97))
     fig.savefig(path, dpi=110)
 
@@ -447,7 +439,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--batch", type=int, default=16384)
     ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--limit", type=float, default=45.0, help="seconds to derive one setting before it counts as not finished")
+    ap.add_argument("--limit", type=float, default=45.0,
+                    help="seconds to derive one setting before it counts as not finished")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
     ap.add_argument("--robots", default=",".join(ROBOTS))
     args = ap.parse_args(argv)

@@ -85,7 +85,7 @@ class PDGravity(Controller):
             grav = dyn.raw("gravity_torques")
             self.gravity = grav
         else:
-            _needs(dyn, ("inverse_dynamics",), "PDGravity (gravity_torques or)")
+            _needs(dyn, ("inverse_dynamics",), "PDGravity (without gravity_torques)")
             rnea = dyn.raw("inverse_dynamics")
             self.gravity = lambda q, p: rnea(q, jnp.zeros_like(q), jnp.zeros_like(q), p)
         self.reference = _as_reference(reference)

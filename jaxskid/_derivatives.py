@@ -2,8 +2,9 @@
 
 Every time derivative is built by the body-fixed recursions themselves, never by differentiating their
 results (Müller & Kumar, "Closed-form time derivatives of the equations of motion of rigid body systems",
-Multibody Syst Dyn 53:257-273, 2021, sec. 3-4). One identity drives all of them: with the relative
-transform ``T_i = Ad(C_{p,i}^-1)`` and ``C_{p,i} = B_i exp(X_i q_i)``,
+Multibody Syst Dyn 53:257-273, 2021, in their Lie-group setting; organised as the Newton-Euler and
+composite-rigid-body recursions). One identity drives all of them: with the relative transform
+``T_i = Ad(C_{p,i}^-1)`` and ``C_{p,i} = B_i exp(X_i q_i)``,
 
     dT_i/dt = -qd_i ad(X_i) T_i,
 
@@ -24,9 +25,9 @@ composite-rigid-body pass over differentiated composite inertias, and dC/dt the 
 pass of :meth:`Kinematics.coriolis_matrix` over differentiated Jacobian columns and twists. Every
 intermediate is named on the shared tape, so the quantities requested together share their work.
 
-Kinematic set (Müller 2018, "Screw and Lie group theory in multibody kinematics", sec. 2.4 and 3): *body*
-quantities are in the moving frame's own coordinates; *hybrid* ones are at the frame's origin in world
-axes, ``V^h = (R omega^b, R v^b) = (omega, dp/dt)``, and the hybrid acceleration is the time derivative of
+Kinematic set (Müller, "Screw and Lie group theory in multibody kinematics", Multibody Syst Dyn 43, 2018):
+*body* quantities are in the moving frame's own coordinates; *hybrid* ones are at the frame's origin in
+world axes, ``V^h = (R omega^b, R v^b) = (omega, dp/dt)``, and the hybrid acceleration is the time derivative of
 the hybrid twist, ``dV^h/dt = (domega/dt, d^2p/dt^2) = (R domega^b/dt, R (dv^b/dt + omega^b x v^b))``
 (the classical acceleration of the origin). The body acceleration ``dV^b/dt`` is Pinocchio's spatial
 acceleration in ``LOCAL``; Pinocchio's ``LOCAL_WORLD_ALIGNED`` spatial acceleration is
@@ -254,9 +255,8 @@ class TimeDerivatives:
 
     def newton_euler(self, k: int, *, velocity: bool, gravity: bool) -> list[Vec]:
         """``tau^(k)`` (``velocity=True``: inverse dynamics) or ``Q_grav^(k)`` (``velocity=False``)."""
-        return self.backward(
-            [[self.body_wrench(i, r, velocity=velocity, gravity=gravity) for r in range(k + 1)] for i in range(self.n)], k
-        )
+        jets = [[self.body_wrench(i, r, velocity=velocity, gravity=gravity) for r in range(k + 1)] for i in range(self.n)]
+        return self.backward(jets, k)
 
     def external_torques(self, wrenches: Sequence[Sequence[Sequence]], k: int) -> list[Vec]:
         """``Q_ext^(k)``; ``wrenches[e][r]`` is the r-th derivative of end-effector e's wrench."""
@@ -446,12 +446,32 @@ def _td(kin):
     return time_derivatives(kin)
 
 
-_SQUARE = lambda r: (r.n_dof, r.n_dof)  # noqa: E731
-_VECTOR = lambda r: (r.n_dof,)  # noqa: E731
-_BODIES = lambda r: (r.n_dof, 6)  # noqa: E731
-_EES = lambda r: (len(r.end_effectors), 6)  # noqa: E731
-_EE_JACOBIAN = lambda r: (len(r.end_effectors), 6, r.n_dof)  # noqa: E731
-_SYSTEM = lambda r: (6 * r.n_dof, r.n_dof)  # noqa: E731
+# ---------------------------------------------------------------------------------------------- shapes
+def _SQUARE(r):
+    return (r.n_dof, r.n_dof)
+
+
+def _VECTOR(r):
+    return (r.n_dof,)
+
+
+def _BODIES(r):
+    return (r.n_dof, 6)
+
+
+def _EES(r):
+    return (len(r.end_effectors), 6)
+
+
+def _EE_JACOBIAN(r):
+    return (len(r.end_effectors), 6, r.n_dof)
+
+
+def _SYSTEM(r):
+    return (6 * r.n_dof, r.n_dof)
+
+
+# ---------------------------------------------------------------------------------------------- registry
 
 for _k, _suffix, _word in ((1, "_dot", "First"), (2, "_ddot", "Second")):
     _d = "d/dt" if _k == 1 else "d^2/dt^2"

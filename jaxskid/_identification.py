@@ -64,11 +64,14 @@ class BaseParameters:
         names = self.names or tuple(f"pi[{k}]" for k in range(self.projection.shape[1]))
         out = []
         for row in self.projection:
-            terms = []
+            text = ""
             for k in np.flatnonzero(row):
-                c = row[k]
-                terms.append(names[k] if c == 1 else f"{c:.{digits}g} {names[k]}")
-            out.append(" + ".join(terms).replace("+ -", "- "))
+                c = float(row[k])
+                c = round(c) if abs(c - round(c)) < 1e-9 else c
+                sign = "-" if c < 0 else "+"
+                mag = "" if abs(c) == 1 else f"{abs(c):.{digits}g} "
+                text += f" {sign} {mag}{names[k]}"
+            out.append(text[3:] if text.startswith(" + ") else "-" + text[3:])
         return out
 
 

@@ -171,9 +171,14 @@ def _float_dtype(*arrays):
 
 
 @partial(jax.jit, static_argnames=("dyn",))
-def _forward_dynamics(dyn, q, qd, tau, p, wrench):
+def _forward_dynamics(dyn, q, qd, tau, params, wrench):
+    dtype = _float_dtype(q, qd, tau)
+    q, qd, tau = (jnp.asarray(x, dtype) for x in (q, qd, tau))
+    p = _param_array(dyn, params, dtype)
     f = accelerations(dyn)
     batch = q.shape[:-1]
+    if wrench is not None:
+        wrench = jnp.asarray(wrench, dtype)
     if not batch:
         return f(q, qd, tau, p, wrench)
     n = q.shape[-1]
@@ -201,26 +206,32 @@ def forward_dynamics(dyn: Dynamics, q, qd, tau, params=None, wrench=None) -> jax
             environment, as in ``inverse_dynamics``; ``(..., n_ee, 6)`` for a batch.
 
     Returns:
-        qdd with the shape of ``q``.
+        qdd with the shape of ``q``. One jitted call (validation reads shapes only).
     """
     _require(dyn, "forward_dynamics")
-    arrays = [jnp.asarray(x) for x in (q, qd, tau)]
     n = dyn.n_dof
-    for name, x in zip(("q", "qd", "tau"), arrays):
-        if x.ndim < 1 or x.shape[-1] != n:
-            raise ShapeError(f"forward_dynamics: {name}: expected shape ({n},) or (..., {n}), got {x.shape}")
-    if not arrays[0].shape == arrays[1].shape == arrays[2].shape:
-        raise ShapeError(f"forward_dynamics: q, qd and tau differ in shape: {[x.shape for x in arrays]}")
-    dtype = _float_dtype(*arrays)
-    arrays = [x.astype(dtype) for x in arrays]
-    p = _param_array(dyn, params, dtype)
-    if p.ndim > 1 and p.shape[:-1] != arrays[0].shape[:-1]:
-        raise ShapeError(f"forward_dynamics: params batch {p.shape[:-1]} differs from the state batch {arrays[0].shape[:-1]}")
-    if wrench is not None:
-        if "external_torques" not in dyn.quantities:
-            raise RequestError("forward_dynamics with a wrench needs the quantity external_torques; lower it too")
-        wrench = jnp.asarray(wrench, dtype)
-    return _forward_dynamics(dyn, *arrays, p, wrench)
+    shapes = [jnp.shape(x) for x in (q, qd, tau)]
+    for name, shape in zip(("q", "qd", "tau"), shapes):
+        if len(shape) < 1 or shape[-1] != n:
+            raise ShapeError(f"forward_dynamics: {name}: expected shape ({n},) or (..., {n}), got {shape}")
+    if not shapes[0] == shapes[1] == shapes[2]:
+        raise ShapeError(f"forward_dynamics: q, qd and tau differ in shape: {shapes}")
+    if params is None:
+        missing = [k for k in dyn.parameters if k not in dyn.defaults]
+        if missing:
+            raise RequestError(f"parameter(s) {', '.join(missing)} have no default value; pass params")
+    elif isinstance(params, Mapping):
+        missing = [k for k in dyn.parameters if k not in params]
+        if missing:
+            raise RequestError(f"params is missing {', '.join(missing)} (expected the names in Dynamics.parameters)")
+    else:
+        pshape = jnp.shape(params)
+        if len(pshape) < 1 or pshape[-1] != len(dyn.parameters) or (len(pshape) > 1 and pshape[:-1] != shapes[0][:-1]):
+            raise ShapeError(f"forward_dynamics: params: expected a dict or shape ({len(dyn.parameters)},) or "
+                             f"(*batch, {len(dyn.parameters)}) with the batch of q, got {pshape}")
+    if wrench is not None and "external_torques" not in dyn.quantities:
+        raise RequestError("forward_dynamics with a wrench needs the quantity external_torques; lower it too")
+    return _forward_dynamics(dyn, q, qd, tau, params, wrench)
 
 
 def mass_matrix_condition(dyn: Dynamics, q, params=None) -> jax.Array:

@@ -169,10 +169,11 @@ def test_mimic_joint_is_read_as_independent_with_a_warning_naming_file_and_joint
     assert "'j1'" in warnings[0]
 
 
-SAMPLE = ["missing_mass_inertia.yaml", "json_nan_screw.json", "binary.yaml", "parent_cycle.yaml",
+SAMPLE = ["missing_mass_inertia.yaml", "json_nan_screw.json", "binary.yaml",
           "urdf_inertial_without_mass.urdf", "urdf_two_roots.urdf", "empty.urdf", "latin1.yaml"]
 
 
+@pytest.mark.slow
 def test_cli_exits_with_code_1_and_one_line():
     script = Path(sysconfig.get_path("scripts")) / "jaxskid"
     command = [str(script)] if script.exists() else [sys.executable, "-m", "jaxskid._cli"]

@@ -54,7 +54,11 @@ def rel_err(ours, ref) -> float:
     return max(errs)
 
 
-@pytest.fixture(scope="module", params=["panda7", "ur5", "solo12", "hopping_leg"])
+SLOW = pytest.mark.slow
+
+
+@pytest.fixture(scope="module", params=[pytest.param("panda7", marks=SLOW), pytest.param("ur5", marks=SLOW),
+                                        pytest.param("solo12", marks=SLOW), "hopping_leg"])
 def case(request):
     robot = load(request.param)
     dyn = jaxskid.lower(robot, ALL)

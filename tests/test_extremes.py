@@ -30,7 +30,6 @@ import sympy as sp
 import jaxskid
 from jaxskid import Joint, Robot
 from jaxskid import _reference as ref_
-from jaxskid._reference import _Evaluator
 
 QUANTITIES = ("mass_matrix", "gravity_torques", "coriolis_torques", "inverse_dynamics")
 ARGS = {"mass_matrix": ("q",), "gravity_torques": ("q",), "coriolis_torques": ("q", "qd"),
@@ -177,6 +176,7 @@ def scalar(out, xp):
     return total
 
 
+@pytest.mark.slow
 def test_grad_is_finite_and_exact_at_zero_and_singular_poses(chain):
     robot, eqs, dyn, params = chain
     n = robot.n_dof
@@ -309,3 +309,12 @@ def test_condition_number_is_reported_and_bounds_the_forward_dynamics_error(coax
             # (jaxskid.mass_matrix_condition returns lambda_max / lambda_min, which is negative when M is
             # numerically indefinite; a negative value is flagged too: no SPD matrix has one.)
             assert not (0 < cond[k] < 0.01 / (4 * n * (3 * n + 1) * U64)), (mu, k, cond[k], true_cond)
+
+
+def test_lowering_two_robots_that_differ_only_in_defaults_keeps_each_ones_defaults(tmp_path):
+    # regression: the cache key left out the default values that the cached module's METADATA holds, so the
+    # second robot silently got the first one's defaults (here: a 1e-6 kg body reported with 1e-2 kg)
+    first = jaxskid.lower(coaxial(1e-2), ["gravity_torques"], cache_dir=tmp_path)
+    second = jaxskid.lower(coaxial(1e-6), ["gravity_torques"], cache_dir=tmp_path)
+    assert first.defaults["b0_m"] == 1e-2 and second.defaults["b0_m"] == 1e-6
+    assert first.source != second.source and len(list(tmp_path.glob("*.py"))) == 2

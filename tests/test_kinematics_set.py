@@ -69,7 +69,8 @@ def omega_v(m: np.ndarray) -> np.ndarray:
     return np.concatenate([m[3:], m[:3]])
 
 
-@pytest.fixture(scope="module", params=["panda7", "ur5", "solo12", "hopping_leg", "random_tree"])
+@pytest.fixture(scope="module", params=[pytest.param("panda7", marks=pytest.mark.slow), "ur5", "solo12", "hopping_leg",
+                                        pytest.param("random_tree", marks=pytest.mark.slow)])
 def case(request):
     robot = load(request.param)
     params = robot.default_params()
