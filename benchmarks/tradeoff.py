@@ -421,6 +421,7 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
                                     textcoords="offset points")
             ax.set_xscale("log")
             ax.set_yscale("log")
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.legend(fontsize=7)
         ax.set_xlabel("ns per state and step")
         ax.set_ylabel(f"max |q(T) - q_ref(T)| (rad), T = {HORIZON} s")

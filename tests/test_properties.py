@@ -202,7 +202,8 @@ def test_mdot_minus_2c_is_skew_symmetric(robot):
     skew = mdot - 2 * c
     # the size of the terms: |M| |qd| (one joint: dM/dt and C are both round-off)
     scale = max(np.abs(mdot).max(), np.abs(c).max(), np.abs(np.real(perturbed)).max() * np.abs(s["qd"]).max())
-    assert np.abs(skew + np.swapaxes(skew, 1, 2)).max() <= 1e-12 * scale
+    # plus an absolute floor for robots whose M barely depends on q (dM/dt and C are then round-off)
+    assert np.abs(skew + np.swapaxes(skew, 1, 2)).max() <= 1e-12 * scale + 1e-16
     cqd = np.einsum("bij,bj->bi", c, s["qd"])  # and C qd are the Coriolis forces
     expected = pinocchio_values(robot, s)
     for k in range(N_STATES):
