@@ -237,11 +237,12 @@ def forward_dynamics(dyn: Dynamics, q, qd, tau, params=None, wrench=None) -> jax
 def mass_matrix_condition(dyn: Dynamics, q, params=None) -> jax.Array:
     """The 2-norm condition number ``lambda_max / lambda_min`` of ``M(q)``, shape ``q.shape[:-1]``.
 
-    A large value warns that :func:`forward_dynamics` loses about ``log10(cond)`` digits.
+    A large value warns that :func:`forward_dynamics` loses about ``log10(cond)`` digits; ``inf`` means M
+    is not positive definite in floating point.
     """
     m = dyn.mass_matrix(q, params)
     ev = jnp.linalg.eigvalsh(m)
-    return ev[..., -1] / ev[..., 0]
+    return jnp.where(ev[..., 0] > 0, ev[..., -1] / ev[..., 0], jnp.inf)
 
 
 # ---------------------------------------------------------------------------------------- integrators
