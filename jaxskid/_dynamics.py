@@ -145,9 +145,11 @@ class Dynamics:
                 poses = call(*state, params=params)
                 return {f: poses[..., k, :, :] for k, f in enumerate(frames)}
 
-            jitted = jax.jit(call_fk, compiler_options=compiler_options())
+            body = call_fk
         else:
-            jitted = jax.jit(call, compiler_options=compiler_options())
+            body = call
+        jitted = jax.jit(body, compiler_options=compiler_options())
+        nested = jax.jit(body)  # inside a caller's trace, the outermost jit's compiler options apply
         takes_wrench = name == "inverse_dynamics"
 
         def fn(*state, params=None, wrench=None):
@@ -157,7 +159,8 @@ class Dynamics:
                 *state, params = state
             if len(state) != len(args):
                 raise ShapeError(f"{name} takes ({', '.join(args)}, params), got {len(state)} state argument(s)")
-            out = jitted(*state, params=params)
+            traced = any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((state, params)))
+            out = (nested if traced else jitted)(*state, params=params)
             if wrench is not None:
                 if not takes_wrench:
                     raise ShapeError(f"{name} takes no wrench")
