@@ -26,41 +26,22 @@ from sympy.printing.numpy import JaxPrinter
 
 from ._equations import Equations, Options, derive, resolve
 from ._model import Robot
+from ._printing import NumberTweaks
 
 log = logging.getLogger("jaxskid")
 
-GENERATOR_VERSION = "1"
+GENERATOR_VERSION = "2"
 _CHECK_PREFIX = "# jaxskid-checksum: "
 
 
-class _Printer(JaxPrinter):
-    """JAX printer tuned for float32/float64 parity and XLA: no general powers for small integer
-    exponents, rationals and floats as plain Python literals (weakly typed, so they take the inputs'
-    dtype)."""
+class _Printer(NumberTweaks, JaxPrinter):
+    """JAX printer with the shared number rules (:class:`jaxskid._printing.NumberTweaks`): plain Python
+    float literals are weakly typed, so constants take the inputs' dtype."""
+
+    _sqrt_name = "jax.numpy.sqrt"
 
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
-
-    def _print_Float(self, expr):
-        return repr(float(expr))
-
-    def _print_Rational(self, expr):
-        return repr(float(expr))
-
-    def _print_Integer(self, expr):
-        return repr(float(int(expr)))
-
-    def _print_Pow(self, expr, rational=False):
-        base, exp = expr.args
-        if exp.is_Integer and 0 < abs(int(exp)) <= 8:
-            b = self.parenthesize(base, sp.printing.precedence.PRECEDENCE["Mul"] + 1)
-            prod = "*".join([b] * abs(int(exp)))
-            return prod if exp > 0 else f"1.0/({prod})"
-        if exp == sp.Rational(1, 2):
-            return f"{self._module}.sqrt({self._print(base)})"
-        if exp == -sp.Rational(1, 2):
-            return f"1.0/{self._module}.sqrt({self._print(base)})"
-        return super()._print_Pow(expr, rational=rational)
 
 
 def _index_expr(arg: str, shape: tuple[int, ...], k: int) -> str:
