@@ -3,11 +3,18 @@
 This is the only stage that knows both SymPy and JAX. The generated module has one pure function per
 quantity, ``name(*state, p) -> array``, for a single state; batching is ``jax.vmap``'s job.
 
-Output form. XLA on CPU compiles a function whose result is assembled by ``jnp.stack`` or
-``jnp.array([...])`` into one slow kernel, and a tuple of outputs into separate kernels that each redo the
-shared work. A chain of ``jnp.where(index == k, value_k, out)`` on a constant index lets XLA fuse the
-whole computation into one loop fusion that writes every output (measured in ``benchmarks/``), so every
-generated function builds its result that way.
+Output form. How the result array is assembled decides how fast XLA on CPU runs the function in a batch
+(Panda mass matrix, batch 65536, float64, per state; measured with ``benchmarks/core.py``):
+
+- ``jnp.stack`` / ``jnp.array([...])`` or a tuple of outputs: XLA computes each distinct entry in a kernel
+  of its own that redoes the shared work (830 ns);
+- one chain ``jnp.where(index == k, value_k, out)`` over the flattened entries: one kernel; the shared work
+  is hoisted out of the loop over entries, but every entry then runs the whole chain of compares and
+  selects against an index held in memory, n^2 selects per state for n entries (300 ns);
+- nested chains, one per axis, on ``lax.broadcasted_iota`` of that axis (what is generated): the index
+  of the innermost axis is a loop constant after unrolling, so its selects fold away, and the outer
+  chains select whole rows (190 ns; 77 ns together with the fusible sine and cosine of
+  :mod:`jaxskid._trig_source`).
 """
 
 from __future__ import annotations
@@ -27,10 +34,11 @@ from sympy.printing.numpy import JaxPrinter
 from ._equations import Equations, Options, derive, resolve
 from ._model import Robot
 from ._printing import NumberTweaks
+from ._trig_source import SOURCE as TRIG_SOURCE
 
 log = logging.getLogger("jaxskid")
 
-GENERATOR_VERSION = "2"
+GENERATOR_VERSION = "3"
 _CHECK_PREFIX = "# jaxskid-checksum: "
 
 
@@ -43,6 +51,12 @@ class _Printer(NumberTweaks, JaxPrinter):
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
 
+    def _print_sin(self, expr):
+        return f"_sin({self._print(expr.args[0])})"
+
+    def _print_cos(self, expr):
+        return f"_cos({self._print(expr.args[0])})"
+
 
 def _index_expr(arg: str, shape: tuple[int, ...], k: int) -> str:
     if len(shape) == 1:
@@ -52,6 +66,44 @@ def _index_expr(arg: str, shape: tuple[int, ...], k: int) -> str:
         idx.append(k % d)
         k //= d
     return f"{arg}[{', '.join(str(i) for i in reversed(idx))}]"
+
+
+def _assemble(shape: tuple[int, ...], outputs: list, rename: dict, printer: _Printer, dtype: str) -> list[str]:
+    """Lines that build the output array (see the module docstring) and return it."""
+    if not shape:
+        value = "0.0" if outputs[0] == 0 else printer.doprint(outputs[0].xreplace(rename))
+        return [f"return jnp.zeros((), {dtype}) + {value}"]
+    shape = tuple(shape)
+    lines = [f"_z = jnp.zeros({shape!r}, {dtype})"]
+    lines += [f"_i{a} = jax.lax.broadcasted_iota(jnp.int32, {shape!r}, {a})" for a in range(len(shape))]
+    stride = [1] * len(shape)
+    for a in reversed(range(len(shape) - 1)):
+        stride[a] = stride[a + 1] * shape[a + 1]
+    count = [0]
+
+    def build(axis: int, offset: int) -> str:
+        """Expression for the block of entries from ``offset`` that share the indices before ``axis``."""
+        acc = "_z"
+        for i in range(shape[axis]):
+            k = offset + i * stride[axis]
+            if axis == len(shape) - 1:
+                e = outputs[k]
+                if e == 0:
+                    continue
+                value = printer.doprint(e.xreplace(rename))
+            else:
+                value = build(axis + 1, k)
+                if value == "_z":
+                    continue
+                if len(value) > 60:  # name a nested block once rather than repeat it inline
+                    count[0] += 1
+                    lines.append(f"_b{count[0]} = {value}")
+                    value = f"_b{count[0]}"
+            acc = f"jnp.where(_i{axis} == {i}, {value}, {acc})"
+        return acc
+
+    lines.append(f"return {build(0, 0)}")
+    return lines
 
 
 def function_source(eqs: Equations, name: str, printer: _Printer | None = None) -> str:
@@ -77,16 +129,8 @@ def function_source(eqs: Equations, name: str, printer: _Printer | None = None) 
             lines.append(f"    _p{k} = p[{k}]")
     for s, e in prog:
         lines.append(f"    {s.name} = {printer.doprint(e.xreplace(rename))}")
-    size = len(qty.outputs)
-    lead = qty.args[0]
-    lines.append(f"    _out = jnp.zeros(({size},), jnp.result_type({lead}, p))")
-    lines.append(f"    _i = jnp.arange({size})")
-    for k, e in enumerate(qty.outputs):
-        e = sp.sympify(e)
-        if e == 0:
-            continue
-        lines.append(f"    _out = jnp.where(_i == {k}, {printer.doprint(e.xreplace(rename))}, _out)")
-    lines.append(f"    return _out.reshape({tuple(qty.shape)!r})")
+    lines.extend("    " + line for line in _assemble(qty.shape, [sp.sympify(e) for e in qty.outputs], rename,
+                                                  printer, f"jnp.result_type({qty.args[0]}, p)"))
     return "\n".join(lines) + "\n"
 
 
@@ -114,7 +158,7 @@ def module_source(eqs: Equations, names: Sequence[str], key: str) -> str:
         "# vector in the order of METADATA['parameters']; it returns one array. Batch with jax.vmap.",
         "import jax",
         "import jax.numpy as jnp",
-        "",
+        TRIG_SOURCE,
         f"METADATA = {json.dumps(meta, sort_keys=True)}",
         "",
     ]
