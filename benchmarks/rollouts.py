@@ -3,7 +3,8 @@
     python benchmarks/rollouts.py [--batches 1,1024,16384] [--steps 100] [--repeats 5] [--peer auto|pinocchio|mjx]
 
 Figures are medians over repeats, per state (forward dynamics) or per state and step (rollouts), float64,
-measured in this run. Peers: Pinocchio's ``aba`` called from Python per state, and MuJoCo MJX
+measured in this run. Forward dynamics is timed through the closed-form quantity ``forward_dynamics`` and
+through the numeric route (lowered M and bias, unrolled L D L^T); rollouts use the closed form. Peers: Pinocchio's ``aba`` called from Python per state, and MuJoCo MJX
 (``mujoco-mjx``, the same URDF through ``mujoco``, vmapped ``mjx.forward``, batches 1 and 64 only: it
 takes milliseconds per state on CPU) when it is importable.
 Gradient cost: ``jax.grad`` of a least-squares loss over 256 states with respect to the 70 inertial
@@ -93,20 +94,24 @@ def main(argv=None):
 
     with tempfile.TemporaryDirectory() as cache:
         t0 = time.perf_counter()
-        dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics", "regressor"], cache_dir=cache)
+        dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics", "regressor", "forward_dynamics"],
+                            cache_dir=cache)
+        # the same lowered M and bias, without the closed-form quantity: the numeric L D L^T route
+        numeric = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"], cache_dir=cache)
         print(f"derive + lower: {time.perf_counter() - t0:.2f} s")
 
         print("\nforward dynamics, qdd = M^-1 (tau - C qd - Q_grav)  [per state]")
         fd = {}
-        for b in batches:
-            q, qd, tau = (jnp.asarray(rng.normal(size=(b, 7))) for _ in range(3))
-            if b == 1:
-                q, qd, tau = q[0], qd[0], tau[0]
-            t0 = time.perf_counter()
-            jax.block_until_ready(jaxskid.forward_dynamics(dyn, q, qd, tau))
-            compile_s = time.perf_counter() - t0
-            fd[b] = median_time(lambda: jaxskid.forward_dynamics(dyn, q, qd, tau), args.repeats) / b
-            print(f"  batch {b:>6}: {fd[b] * 1e9:9.0f} ns/state   (first call {compile_s:.2f} s)")
+        for label, model in (("closed form", dyn), ("M + bias, L D L^T", numeric)):
+            for b in batches:
+                q, qd, tau = (jnp.asarray(rng.normal(size=(b, 7))) for _ in range(3))
+                if b == 1:
+                    q, qd, tau = q[0], qd[0], tau[0]
+                t0 = time.perf_counter()
+                jax.block_until_ready(jaxskid.forward_dynamics(model, q, qd, tau))
+                compile_s = time.perf_counter() - t0
+                fd[b] = median_time(lambda: jaxskid.forward_dynamics(model, q, qd, tau), args.repeats) / b
+                print(f"  {label:<18} batch {b:>6}: {fd[b] * 1e9:9.0f} ns/state   (first call {compile_s:.2f} s)")
         states = tuple(rng.normal(size=(256, 7)) for _ in range(3))
         t_pin = pinocchio_aba(states, args.repeats)
         print(f"  Pinocchio aba, per call from Python: {t_pin * 1e9:.0f} ns")
@@ -124,7 +129,7 @@ def main(argv=None):
             x0 = jnp.asarray(np.concatenate([rng.uniform(-1, 1, (b, 7)), np.zeros((b, 7))], axis=1))
             x0 = x0[0] if b == 1 else x0
             controls = np.zeros((args.steps, 7))
-            run = lambda: jaxskid.rollout(dyn, x0, controls, 1e-3, args.steps).x  # noqa: E731
+            run = lambda: jaxskid.rollout(dyn, x0, controls, 1e-3, args.steps).x  # noqa: E731  (closed form)
             t = median_time(run, args.repeats) / (b * args.steps)
             print(f"  batch {b:>6}: {t * 1e9:9.0f} ns/state/step  ({t / 4 * 1e9:.0f} ns per forward-dynamics stage)")
 

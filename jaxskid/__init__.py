@@ -5,6 +5,7 @@ from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, sc
 from ._model import Frame, Joint, Robot, spatial_to_body, symbol
 from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from . import _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
+from . import _forward  # noqa: F401  (registers the closed-form forward dynamics)
 from ._regressor import params_from_standard, standard_parameter_names, standard_params
 from ._lower import cache_dir
 from ._dynamics import Dynamics

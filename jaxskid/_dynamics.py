@@ -8,6 +8,7 @@ mapped with ``jax.vmap``), then ``params``: ``None`` for the defaults, a dict na
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
 
 import jax
@@ -25,6 +26,10 @@ def compiler_options() -> dict:
     the Coriolis matrix: 747 us against 15 us), so the classic emitters are used there.
     """
     return {"xla_cpu_use_fusion_emitters": False} if jax.default_backend() == "cpu" else {}
+
+
+def _plain(body: Callable, same: Callable, *args):
+    return body(*args, same)
 
 
 class Dynamics:
@@ -47,6 +52,10 @@ class Dynamics:
         self.n_dof = len(self.joint_names)
         self._meta = meta["quantities"]
         self._raw: dict[str, Callable] = {name: namespace[name] for name in self._meta}
+        same = namespace["_same"]
+        self._plain: dict[str, Callable] = {
+            name: functools.partial(_plain, namespace["_" + name], same) for name in self._meta
+        }
         self._jitted: dict[str, Callable] = {}
 
     # ------------------------------------------------------------------ introspection
@@ -59,9 +68,15 @@ class Dynamics:
         m = self._meta[name]
         return tuple(m["args"]), tuple(m["shape"])
 
-    def raw(self, name: str) -> Callable:
-        """The generated function for one state, ``f(*state, p)`` with ``p`` a parameter vector."""
-        return self._raw[name]
+    def raw(self, name: str, batched: bool = True) -> Callable:
+        """The generated function for one state, ``f(*state, p)`` with ``p`` a parameter vector.
+
+        ``batched=True`` gives the form to map with ``jax.vmap`` (its inputs are broadcast to the output's
+        shape so that XLA makes one kernel of a batch; see :mod:`jaxskid._lower`); ``batched=False`` the
+        same program on unbroadcast values, for a single state (XLA makes nothing better of the broadcast
+        there, and on the closed-form forward dynamics its simplifier loops over it).
+        """
+        return self._raw[name] if batched else self._plain[name]
 
     def default_params(self) -> dict[str, float]:
         return dict(self.defaults)
@@ -109,7 +124,7 @@ class Dynamics:
 
     def _make(self, name: str) -> Callable:
         args, shape = self.signature(name)
-        raw = self._raw[name]
+        raw, plain = self._raw[name], self._plain[name]
         n = self.n_dof
         arg_shapes = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (n,)) for a in args}
 
@@ -133,7 +148,7 @@ class Dynamics:
                 arrays = [x.astype(dtype) for x in arrays]
             p = self.param_vector(params, dtype)
             if not batch:
-                return raw(*arrays, p)
+                return plain(*arrays, p)
             flat = [x.reshape((-1, *arg_shapes[a])) for a, x in zip(args, arrays)]
             out = jax.vmap(raw, in_axes=(*([0] * len(flat)), None))(*flat, p)
             return out.reshape((*batch, *shape))
@@ -175,10 +190,11 @@ class Dynamics:
         return fn
 
     def forward_dynamics(self, q, qd, tau, params=None, wrench=None):
-        """``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext)`` by a Cholesky-type solve.
+        """``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext)``.
 
-        Needs ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``)
-        to have been lowered; see :func:`jaxskid.forward_dynamics`.
+        Uses the lowered quantity ``forward_dynamics`` (closed form) when there is one, else
+        ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``) with a
+        Cholesky-type solve; see :func:`jaxskid.forward_dynamics`.
         """
         from ._simulate import forward_dynamics
 

@@ -64,6 +64,7 @@ DEFAULT_QUANTITIES = (
     "coriolis_torques",
     "gravity_torques",
     "inverse_dynamics",
+    "forward_dynamics",
     "forward_kinematics",
 )
 
@@ -329,6 +330,8 @@ def derive(
             ("q4d", "joint jounces"),
         )
     }
+    kin.tau_symbols = tuple(sp.Symbol(f"_tau{i}", real=True) for i in range(n))
+    arguments["tau"] = Argument("tau", (n,), kin.tau_symbols, "joint forces")
     arguments["wrench"] = Argument("wrench", (n_ee, 6), wrench, "end-effector wrenches (moment, force)")
     for k, doc in (("wrench_d", "first time derivatives of the end-effector wrenches"),
                    ("wrench_dd", "second time derivatives of the end-effector wrenches")):

@@ -4,16 +4,9 @@ The mass matrix from the composite-rigid-body algorithm and the bias from one Ne
 factored *symbolically* as ``M = L^T D L`` with the branch-induced sparsity of the tree (Featherstone,
 "Efficient factorization of the joint-space inertia matrix for branched kinematic trees", IJRR 24(6),
 2005, Alg. LTDL), then solved by substitution: about ``n d^2 / 2`` extra operations for depth ``d``.
-Lowered like any quantity, the whole of forward dynamics becomes one fused kernel; measured on the Panda
-(prototype, batch 16384, float64) 0.18 us per state when the pivots' reciprocals are printed as a
-multiply-only Newton iteration (see :func:`jaxskid._simulate._reciprocal`), 0.55-0.69 us with divisions,
-against 0.6-0.9 us for the numeric route of :func:`jaxskid.forward_dynamics` (M, bias, unrolled L D L^T).
-
-Not registered: the generated functions' arguments are fixed by :func:`jaxskid.derive`, which has no
-joint-force argument yet. With one (symbols ``kin.tau_symbols``), registration is::
-
-    register(QuantitySpec("forward_dynamics", ("q", "qd", "tau"), lambda r: (r.n_dof,),
-                          lambda k: forward_dynamics_outputs(k, k.tau_symbols), "qdd = M^-1 (tau - C qd - Q_grav)", ...))
+Lowered like any quantity, the whole of forward dynamics becomes one fused kernel. Registered as the
+quantity ``forward_dynamics``; :meth:`jaxskid.Dynamics.forward_dynamics` uses it when it was lowered and
+otherwise solves with the lowered M and bias numerically (:func:`jaxskid._simulate.accelerations`).
 """
 
 from __future__ import annotations
@@ -22,6 +15,7 @@ from collections.abc import Sequence
 
 import sympy as sp
 
+from ._equations import QuantitySpec, register
 from ._symbolic import Kinematics
 
 
@@ -58,3 +52,12 @@ def forward_dynamics_outputs(kin: Kinematics, tau: Sequence[sp.Symbol]) -> list:
             x[i] = t(x[i] - h[i][j] * x[j])
             j = lam[j]
     return x
+
+
+register(QuantitySpec(
+    "forward_dynamics", ("q", "qd", "tau"), lambda r: (r.n_dof,),
+    lambda k: forward_dynamics_outputs(k, k.tau_symbols),
+    "qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q))",
+    "Forward dynamics in closed form: M = L^T D L factored symbolically with the tree's sparsity "
+    "(Featherstone 2005), then solved by substitution. End-effector wrenches: pass tau - Q_ext.",
+))

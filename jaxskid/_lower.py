@@ -3,18 +3,22 @@
 This is the only stage that knows both SymPy and JAX. The generated module has one pure function per
 quantity, ``name(*state, p) -> array``, for a single state; batching is ``jax.vmap``'s job.
 
-Output form. How the result array is assembled decides how fast XLA on CPU runs the function in a batch
-(Panda mass matrix, batch 65536, float64, per state; measured with ``benchmarks/core.py``):
+Output form. How the result array is assembled decides how fast XLA on CPU runs the function in a batch.
+``python benchmarks/output_forms.py`` measures the forms on the Panda (float64, batch 65536, per state):
 
-- ``jnp.stack`` / ``jnp.array([...])`` or a tuple of outputs: XLA computes each distinct entry in a kernel
-  of its own that redoes the shared work (830 ns);
-- one chain ``jnp.where(index == k, value_k, out)`` over the flattened entries: one kernel; the shared work
-  is hoisted out of the loop over entries, but every entry then runs the whole chain of compares and
-  selects against an index held in memory, n^2 selects per state for n entries (300 ns);
-- nested chains, one per axis, on ``lax.broadcasted_iota`` of that axis (what is generated): the index
-  of the innermost axis is a loop constant after unrolling, so its selects fold away, and the outer
-  chains select whole rows (190 ns; 77 ns together with the fusible sine and cosine of
-  :mod:`jaxskid._trig_source`).
+- ``jnp.stack`` / ``jnp.array([...])`` of the entries: XLA computes each distinct entry in a kernel of
+  its own that redoes the shared work (mass matrix 710 ns);
+- one chain ``jnp.where(index == k, value_k, out)`` over the flattened entries: the shared work is
+  hoisted out of the loop over entries, but every entry runs the whole chain of compares and selects
+  against an index held in memory, n^2 selects for n entries (260 ns);
+- nested chains, one per axis, on ``lax.broadcasted_iota`` of that axis: the innermost index is a loop
+  constant after unrolling, so those selects fold away, and the outer chains select whole rows (160 ns;
+  66 ns with the fusible sine and cosine of :mod:`jaxskid._helpers_source`);
+- the same, with every input entry first broadcast to the output's shape (what is generated): every
+  operation is then elementwise on one shape, so XLA's estimate of how often a shared value would be
+  recomputed stays low and the whole function is one kernel (mass matrix 57 ns; Coriolis matrix 570
+  against 780 ns at batch 16384, one kernel instead of 153). The shared work still runs once per state:
+  it depends only on the state, and LLVM hoists it out of the loops over the entries.
 """
 
 from __future__ import annotations
@@ -30,11 +34,12 @@ from pathlib import Path
 
 import sympy as sp
 from sympy.printing.numpy import JaxPrinter
+from sympy.printing.precedence import PRECEDENCE
 
 from ._equations import Equations, Options, derive, resolve
 from ._model import Robot
 from ._printing import NumberTweaks
-from ._trig_source import SOURCE as TRIG_SOURCE
+from ._helpers_source import SOURCE as HELPERS_SOURCE
 
 log = logging.getLogger("jaxskid")
 
@@ -50,6 +55,22 @@ class _Printer(NumberTweaks, JaxPrinter):
 
     def __init__(self):
         super().__init__({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
+
+    def _print_Pow(self, expr, rational=False):
+        base, exp = expr.args
+        if exp.is_Integer and -8 <= int(exp) < 0:  # 1/x as Newton's iteration (see _helpers_source)
+            return f"_recip({self._print(base ** -exp)})"
+        return super()._print_Pow(expr, rational)
+
+    def _print_Mul(self, expr):
+        # sympy prints a/b for negative powers inside a product; keep them as factors so that
+        # _print_Pow turns them into _recip
+        factors = [self._print_Pow(f) if f.is_Pow and f.exp.is_Integer and f.exp < 0 else None for f in expr.args]
+        if not any(factors):
+            return super()._print_Mul(expr)
+        rest = sp.Mul(*[f for f, printed in zip(expr.args, factors) if printed is None], evaluate=False)
+        parts = [p for p in factors if p] + ([self.parenthesize(rest, PRECEDENCE["Mul"])] if rest != 1 else [])
+        return "*".join(parts)
 
     def _print_sin(self, expr):
         return f"_sin({self._print(expr.args[0])})"
@@ -118,19 +139,31 @@ def function_source(eqs: Equations, name: str, printer: _Printer | None = None) 
     for e in qty.outputs:
         used |= sp.sympify(e).free_symbols
     args = [*qty.args, "p"]
-    lines = [f"def {name}({', '.join(args)}):", f'    """{qty.equation}: {qty.doc}"""']
+    shape = tuple(qty.shape)
+    lines = [f"def _{name}({', '.join(args)}, spread):"]
     for a in qty.args:
         arg = eqs.arguments[a]
         for k, s in enumerate(arg.symbols):
             if s in used:
-                lines.append(f"    {s.name} = {_index_expr(a, arg.shape, k)}")
+                lines.append(f"    {s.name} = spread({_index_expr(a, arg.shape, k)})")
     for k, s in enumerate(eqs.param_symbols):
         if s in used:
-            lines.append(f"    _p{k} = p[{k}]")
+            lines.append(f"    _p{k} = spread(p[{k}])")
     for s, e in prog:
         lines.append(f"    {s.name} = {printer.doprint(e.xreplace(rename))}")
     lines.extend("    " + line for line in _assemble(qty.shape, [sp.sympify(e) for e in qty.outputs], rename,
                                                   printer, f"jnp.result_type({qty.args[0]}, p)"))
+    lines += [
+        "",
+        "",
+        "@jax.custom_jvp",
+        f"def {name}({', '.join(args)}):",
+        f'    """{qty.equation}: {qty.doc}"""',
+        f"    return _{name}({', '.join(args)}, {'_spread(' + repr(shape) + ')' if shape else '_same'})",
+        "",
+        "",
+        f"{name}.defjvp(_plain_jvp(_{name}))",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -158,7 +191,7 @@ def module_source(eqs: Equations, names: Sequence[str], key: str) -> str:
         "# vector in the order of METADATA['parameters']; it returns one array. Batch with jax.vmap.",
         "import jax",
         "import jax.numpy as jnp",
-        TRIG_SOURCE,
+        HELPERS_SOURCE,
         f"METADATA = {json.dumps(meta, sort_keys=True)}",
         "",
     ]

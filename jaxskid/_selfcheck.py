@@ -6,6 +6,7 @@ Each check compares two computations that share no derivation step, on random st
 * ``C(q, qd) qd`` from the Coriolis matrix against the Newton-Euler Coriolis forces;
 * ``dM/dt - 2C`` is skew-symmetric, with ``dM/dt`` from ``jax.jvp`` of the mass matrix;
 * M is symmetric positive definite;
+* closed-form forward dynamics inverts Newton-Euler: ``FD(q, qd, tau(q, qd, qdd)) = qdd``;
 * the Jacobian maps velocities like a finite difference of forward kinematics.
 """
 
@@ -68,6 +69,12 @@ def self_check(dyn: Dynamics, params=None, *, n_states: int = 16, seed: int = 0)
         c = dyn.coriolis_matrix(q, qd, params)
         s = np.asarray(md - 2 * c)
         out.append(Check("dM/dt - 2C skew-symmetric", _rel(s, -np.swapaxes(s, -1, -2)), tol))
+    if {"forward_dynamics", "inverse_dynamics"} <= have:
+        tau = dyn.inverse_dynamics(q, qd, qdd, params)
+        back = dyn.forward_dynamics(q, qd, tau, params)
+        # round-off grows with cond(M), large for random states of robots with light distal links
+        cond = float(np.max(np.linalg.cond(np.asarray(dyn.mass_matrix(q, params))))) if "mass_matrix" in have else 1e3
+        out.append(Check("forward dynamics inverts tau", _rel(back, qdd), tol * max(1.0, cond)))
     if {"forward_kinematics", "hybrid_jacobian"} <= have and dyn.end_effectors:
         h = 1e-6 if dtype == jnp.float64 else 1e-2
         poses = dyn.forward_kinematics

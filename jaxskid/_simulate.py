@@ -83,7 +83,8 @@ def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
     """Solve ``m x = b`` for one symmetric positive definite ``m`` (n, n) by ``m = L D L^T``, unrolled.
 
     Square-root free Cholesky (Golub & Van Loan, Alg. 4.1.2), written entry by entry so that XLA fuses it
-    with the computation of ``m`` and ``b``; vmap it for a batch.
+    with the computation of ``m`` and ``b``; vmap it for a batch. A matrix that is not positive definite
+    (a pivot <= 0, e.g. from non-physical inertial parameters) gives nan, as ``jnp.linalg.cholesky`` does.
     """
     n = b.shape[-1]
     lo = [[None] * n for _ in range(n)]
@@ -92,7 +93,7 @@ def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
         s = m[j, j]
         for k in range(j):
             s = s - lo[j][k] * lo[j][k] * d[k]
-        d[j], dinv[j] = s, _reciprocal(s)
+        d[j], dinv[j] = s, jnp.where(s > 0, _reciprocal(s), jnp.nan)  # as jnp.linalg.cholesky: nan if not SPD
         for i in range(j + 1, n):
             s = m[i, j]
             for k in range(j):
@@ -115,17 +116,33 @@ def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
 
 def _require(dyn: Dynamics, what: str) -> None:
     have = set(dyn.quantities)
+    if "forward_dynamics" in have:
+        return
     if "mass_matrix" not in have or not ({"inverse_dynamics"} <= have or {"coriolis_torques", "gravity_torques"} <= have):
         raise RequestError(
-            f"{what} needs the quantities mass_matrix and inverse_dynamics (or coriolis_torques and "
-            f"gravity_torques); lowered: {', '.join(dyn.quantities)}. Ask for them with "
-            "jaxskid.lower(robot, quantities=[..., 'mass_matrix', 'inverse_dynamics'])"
+            f"{what} needs the quantity forward_dynamics, or mass_matrix and inverse_dynamics (or "
+            f"coriolis_torques and gravity_torques); lowered: {', '.join(dyn.quantities)}. Ask for them with "
+            "jaxskid.lower(robot, quantities=[..., 'forward_dynamics'])"
         )
 
 
-def accelerations(dyn: Dynamics) -> Callable:
-    """The single-state function ``qdd(q, qd, tau, p, wrench=None)`` with ``p`` a parameter vector."""
+def accelerations(dyn: Dynamics, batched: bool = True) -> Callable:
+    """The single-state function ``qdd(q, qd, tau, p, wrench=None)`` with ``p`` a parameter vector.
+
+    With the quantity ``forward_dynamics`` lowered, this is the closed form (:mod:`jaxskid._forward`);
+    otherwise M and the bias are evaluated and solved by :func:`ldl_solve`. ``batched``: whether the
+    function will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`).
+    """
     _require(dyn, "forward_dynamics")
+    if "forward_dynamics" in dyn.quantities:
+        closed = dyn.raw("forward_dynamics", batched)
+
+        def qdd_closed(q, qd, tau, p, wrench=None):
+            if wrench is not None:
+                tau = tau - dyn.raw("external_torques")(q, wrench, p)
+            return _materialize(closed(q, qd, tau, p))
+
+        return qdd_closed
     mass = dyn.raw("mass_matrix")
     if "inverse_dynamics" in dyn.quantities:
         rnea = dyn.raw("inverse_dynamics")
@@ -175,8 +192,8 @@ def _forward_dynamics(dyn, q, qd, tau, params, wrench):
     dtype = _float_dtype(q, qd, tau)
     q, qd, tau = (jnp.asarray(x, dtype) for x in (q, qd, tau))
     p = _param_array(dyn, params, dtype)
-    f = accelerations(dyn)
     batch = q.shape[:-1]
+    f = accelerations(dyn, batched=bool(batch))
     if wrench is not None:
         wrench = jnp.asarray(wrench, dtype)
     if not batch:
@@ -197,8 +214,9 @@ def forward_dynamics(dyn: Dynamics, q, qd, tau, params=None, wrench=None) -> jax
     """Joint accelerations ``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext(q, W))``.
 
     Args:
-        dyn: lowered with ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and
-            ``gravity_torques``); with ``external_torques`` too if ``wrench`` is given.
+        dyn: lowered with ``forward_dynamics`` (the closed form, fastest), or with ``mass_matrix`` and
+            ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``); with
+            ``external_torques`` too if ``wrench`` is given.
         q, qd, tau: shape ``(n,)``, or ``(..., n)`` for a batch.
         params: ``None`` (defaults), a dict name -> value, or a vector ``(n_params,)``; a batch of vectors
             ``(..., n_params)`` or a dict of batched values pairs one parameter set with each state.
@@ -333,9 +351,9 @@ class Trajectory(NamedTuple):
         return self.x[..., self.x.shape[-1] // 2:]
 
 
-def _rollout_one(dyn, controller, integrator, steps, x0, p, u, dt) -> Trajectory:
+def _rollout_one(dyn, controller, integrator, steps, x0, p, u, dt, batched=False) -> Trajectory:
     n = dyn.n_dof
-    qdd = accelerations(dyn)
+    qdd = accelerations(dyn, batched)
     z0 = controller.init(x0) if controller is not None else ()
 
     def step(carry, u_k):
@@ -366,7 +384,7 @@ _rollout_single = jax.jit(_rollout_one, static_argnames=("dyn", "controller", "i
 
 @partial(jax.jit, static_argnames=("dyn", "controller", "integrator", "steps", "p_batched", "u_batched", "devices"))
 def _rollout_batch(dyn, controller, integrator, steps, p_batched, u_batched, devices, x0, p, u, dt):
-    one = partial(_rollout_one, dyn, controller, integrator, steps)
+    one = partial(_rollout_one, dyn, controller, integrator, steps, batched=True)
     run = jax.vmap(one, in_axes=(0, 0 if p_batched else None, 0 if u_batched else None, None))
     if len(devices) > 1:
         mesh = Mesh(np.asarray(devices), ("batch",))

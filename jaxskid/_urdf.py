@@ -264,6 +264,11 @@ def _check_document(root) -> None:
             a = _floats(axis.get("xyz", "1 0 0"), 3, f"{where}.axis")
             if not any(a):
                 raise ModelError(f"expected a non-zero axis, got {axis.get('xyz')!r}", where=f"{where}.axis")
+        for tag, attrs in _NUMERIC_JOINT_ATTRIBUTES.items():
+            sub = el.find(tag)
+            for attr in attrs if sub is not None else ():
+                if sub.get(attr) is not None:  # +-inf is a usable limit; nan and words are not
+                    _floats(sub.get(attr), 1, f"{where}.{tag}.{attr}", infinite=True)
         mimic = el.find("mimic")
         if mimic is not None:
             for attr in ("multiplier", "offset"):
@@ -273,6 +278,14 @@ def _check_document(root) -> None:
     for where, target in mimics:
         if target not in joint_names:
             raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
+
+
+_NUMERIC_JOINT_ATTRIBUTES = {  # read by yourdfpy (as floats) though not by jaxskid's dynamics
+    "limit": ("lower", "upper", "effort", "velocity"),
+    "dynamics": ("damping", "friction"),
+    "calibration": ("rising", "falling"),
+    "safety_controller": ("soft_lower_limit", "soft_upper_limit", "k_position", "k_velocity"),
+}
 
 
 def _check_inertial(el, where: str) -> None:
@@ -308,7 +321,7 @@ def _check_origin(el, where: str) -> None:
             _floats(el.get(attr), 3, f"{where}.{attr}")
 
 
-def _floats(text: str | None, n: int, where: str) -> list[float]:
+def _floats(text: str | None, n: int, where: str, infinite: bool = False) -> list[float]:
     what = "a number" if n == 1 else f"{n} numbers"
     if text is None:
         raise ModelError(f"expected {what}, got nothing", where=where)
@@ -319,8 +332,9 @@ def _floats(text: str | None, n: int, where: str) -> list[float]:
         values = None
     if values is None or len(values) != n:
         raise ModelError(f"expected {what}, got {text!r}", where=where)
-    if not all(math.isfinite(v) for v in values):
-        raise ModelError(f"expected {'a finite number' if n == 1 else 'finite numbers'}, got {text!r}", where=where)
+    if not all(math.isfinite(v) or (infinite and math.isinf(v)) for v in values):
+        wanted = ("a number, not nan" if infinite else "a finite number") if n == 1 else "finite numbers"
+        raise ModelError(f"expected {wanted}, got {text!r}", where=where)
     return values
 
 

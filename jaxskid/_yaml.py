@@ -158,7 +158,7 @@ def _load(path: Path):
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise ModelError(f"expected UTF-8 text, found an invalid byte at offset {exc.start}", source=source) from exc
+        raise ModelError(f"expected UTF-8 text, found an invalid byte at offset {exc.start}", source=source) from None
     if not text.strip():
         raise ModelError("the file is empty; expected a robot description", source=source)
     try:

@@ -110,9 +110,7 @@ CASES = {
     "urdf_axis_nan.urdf": ("joint[name=j1].axis", "expected finite numbers, got '0 nan 1'"),
     "urdf_origin_four_values.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '0 0 0.1 0'"),
     "urdf_xacro_expression.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '${length} 0 0'"),
-    # <limit> is not checked by jaxskid, so yourdfpy's ValueError is reported (in one line, without a chained
-    # traceback) under the whole robot; the better key path would be joint[name=j1].limit.effort
-    "urdf_limit_not_a_number.urdf": ("robot", "could not convert string to float: 'lots'"),
+    "urdf_limit_not_a_number.urdf": ("joint[name=j1].limit.effort", "expected a number, got 'lots'"),
     "sdf_root.urdf": ("robot", "expected the root element <robot>, got <sdf>"),
     "empty.urdf": (None, "expected a URDF (XML) document, got an empty file"),
     "binary.urdf": (None, "expected a URDF (XML) text file, got binary data"),

@@ -39,7 +39,8 @@ PANDA = Path(
     )
 )
 FINGERS = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
-QUANTITIES = ["mass_matrix", "gravity_torques", "inverse_dynamics", "coriolis_matrix", "forward_kinematics"]
+QUANTITIES = ["mass_matrix", "gravity_torques", "inverse_dynamics", "forward_dynamics", "coriolis_matrix",
+              "forward_kinematics"]
 N_STATES = 3
 RTOL = 1e-10
 CFLAGS = ["-Wall", "-Wextra", "-Werror", "-pedantic", "-O1"]
@@ -69,7 +70,7 @@ class Case:
         for _ in range(N_STATES):
             self.states.append({
                 "q": rng.uniform(-np.pi, np.pi, n), "qd": rng.uniform(-2, 2, n), "qdd": rng.uniform(-2, 2, n),
-                "wrench": rng.uniform(-1, 1, (n_ee, 6)),
+                "tau": rng.uniform(-5, 5, n), "wrench": rng.uniform(-1, 1, (n_ee, 6)),
             })
         self.params = np.array([self.robot.default_params()[k] for k in self.eqs.parameters])
         self.ref = {name: [self.jax(name, s) for s in self.states] for name in self.names}

@@ -30,16 +30,22 @@ ROBOTS = Path(
     importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
 )
 FD = ["mass_matrix", "inverse_dynamics"]
+ROUTES = pytest.mark.parametrize("closed", [False, True], ids=["numeric", "closed-form"])
 
 
-@pytest.fixture(scope="module")
-def panda():
+def lowered(robot, closed, extra=()):
+    """Forward dynamics from M and tau (numeric L D L^T) or from the closed-form quantity."""
+    return jaxskid.lower(robot, [*FD, *extra, *(["forward_dynamics"] if closed else [])])
+
+
+@pytest.fixture(scope="module", params=[False, True], ids=["numeric", "closed-form"])
+def panda(request):
     lock = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
     path = ROBOTS / "panda_description/urdf/panda.urdf"
     robot = jaxskid.read_urdf(path, lock=lock)
     model = pin.buildModelFromUrdf(str(path))
     model = pin.buildReducedModel(model, [model.getJointId(k) for k in lock], pin.neutral(model))
-    return robot, jaxskid.lower(robot, FD), model
+    return robot, lowered(robot, request.param), model
 
 
 @pytest.fixture(scope="module")
@@ -74,12 +80,13 @@ def test_forward_dynamics_matches_pinocchio_aba_panda(panda):
     np.testing.assert_allclose(cond, [np.linalg.cond(pin.crba(model, data, q[k])) for k in range(4)], rtol=1e-8)
 
 
-def test_forward_dynamics_random_trees_batched_params_and_wrench():
+@ROUTES
+def test_forward_dynamics_random_trees_batched_params_and_wrench(closed):
     """Random trees with prismatic joints, one parameter set per state, and end-effector wrenches:
     Pinocchio's aba with tau - J^T W (J: Pinocchio's LOCAL frame Jacobian)."""
     rng = np.random.default_rng(5)
     robot = random_robot(rng, 5, tree=True, prismatic=0.4)
-    dyn = jaxskid.lower(robot, [*FD, "external_torques"])
+    dyn = lowered(robot, closed, ["external_torques"])
     base = robot.default_params()
     batch = 6
     values = [{k: v * (1 + 0.2 * rng.uniform()) if not k.endswith(("mcx", "mcy", "mcz", "Ixy", "Ixz", "Iyz")) else v
@@ -102,12 +109,13 @@ def test_forward_dynamics_random_trees_batched_params_and_wrench():
         np.testing.assert_allclose(qdd[k], ref, rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
 
 
-def test_forward_dynamics_derivatives_match_pinocchio():
-    """jax.jacfwd of forward dynamics (through the unrolled L D L^T and the Newton reciprocal) equals
-    Pinocchio's analytical ABA derivatives, on a random tree with prismatic joints."""
+@ROUTES
+def test_forward_dynamics_derivatives_match_pinocchio(closed):
+    """jax.jacfwd of forward dynamics (through the unrolled L D L^T, or the closed form, and the Newton
+    reciprocal) equals Pinocchio's analytical ABA derivatives, on a random tree with prismatic joints."""
     rng = np.random.default_rng(12)
     robot = random_robot(rng, 4, tree=True, prismatic=0.3)
-    dyn = jaxskid.lower(robot, FD)
+    dyn = lowered(robot, closed)
     model, _ = to_pinocchio(robot, robot.default_params())
     data = model.createData()
     q, qd, _ = random_states(4, 1, seed=8)
@@ -134,8 +142,9 @@ def test_forward_dynamics_requests_missing_quantities(pendulum):
         jaxskid.forward_dynamics(pendulum[1], np.zeros(3), np.zeros(3), np.zeros(3))
 
 
-def test_forward_dynamics_float32(pendulum):
-    robot, dyn = pendulum
+@ROUTES
+def test_forward_dynamics_float32(closed):
+    dyn = lowered(jaxskid.load(REPO / "robots/double_pendulum.yaml"), closed)
     q, qd, tau = (np.array(v, dtype=np.float32) for v in ([0.3, -1.1], [0.5, 2.0], [0.1, -0.4]))
     out = jaxskid.forward_dynamics(dyn, q, qd, tau)
     assert out.dtype == jnp.float32
@@ -249,8 +258,8 @@ def test_sharded_rollout_equals_unsharded(tmp_path):
 
 
 def test_closed_form_forward_dynamics_on_the_tape():
-    """The symbolic sparse L^T D L forward dynamics (jaxskid._forward, not lowered yet: derive has no
-    joint-force argument), evaluated in floating point, equals Pinocchio's aba on a random tree."""
+    """The symbolic sparse L^T D L forward dynamics (jaxskid._forward), evaluated in floating point by
+    SymPy (no lowering, no Newton reciprocal), equals Pinocchio's aba on a random tree."""
     import sympy as sp
 
     from jaxskid._forward import forward_dynamics_outputs
@@ -273,3 +282,31 @@ def test_closed_form_forward_dynamics_on_the_tape():
     qdd = np.array([float(sp.sympify(e).xreplace(values)) for e in outs])
     model, _ = to_pinocchio(robot, params)
     np.testing.assert_allclose(qdd, pin.aba(model, model.createData(), q[0], qd[0], tau), atol=1e-10)
+
+
+def test_ldl_solve_matches_numpy_and_rejects_indefinite_matrices():
+    from jaxskid._simulate import ldl_solve
+
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(6, 6))
+    spd = a @ a.T + 6 * np.eye(6)
+    b = rng.normal(size=6)
+    np.testing.assert_allclose(np.asarray(ldl_solve(jnp.asarray(spd), jnp.asarray(b))), np.linalg.solve(spd, b),
+                               rtol=1e-12)
+    indefinite = spd - (np.linalg.eigvalsh(spd)[0] + 1.0) * np.eye(6)  # one negative eigenvalue
+    assert np.all(np.isnan(np.asarray(ldl_solve(jnp.asarray(indefinite), jnp.asarray(b)))))
+    singular = np.diag([1.0, 0.0, 2.0, 3.0, 4.0, 5.0])
+    assert np.all(np.isnan(np.asarray(ldl_solve(jnp.asarray(singular), jnp.asarray(b)))))
+
+
+def test_closed_form_rollouts_equal_numeric_rollouts():
+    """RK4 rollouts through the closed-form quantity equal those through M and tau, single and batched
+    (the batched path maps the broadcast form, the single path the plain one)."""
+    robot = jaxskid.load(REPO / "robots/arm_3dof.yaml")
+    closed, numeric = lowered(robot, True), lowered(robot, False)
+    x0 = np.random.default_rng(3).uniform(-1, 1, (4, 6))
+    controls = np.random.default_rng(4).normal(size=(4, 200, 3))
+    for x, u in ((x0[0], controls[0]), (x0, controls)):
+        a = jaxskid.rollout(closed, x, u, 2e-3, 200).x
+        b = jaxskid.rollout(numeric, x, u, 2e-3, 200).x
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-10 * np.abs(np.asarray(b)).max())

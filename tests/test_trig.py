@@ -6,7 +6,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from jaxskid._trig_source import SOURCE
+from jaxskid._helpers_source import SOURCE
 
 
 @pytest.fixture(scope="module")
