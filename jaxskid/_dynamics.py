@@ -128,7 +128,7 @@ class Dynamics:
         n = self.n_dof
         arg_shapes = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (n,)) for a in args}
 
-        def call(*state, params=None):
+        def call(*state, params=None, pair=False):
             arrays = [jnp.asarray(x) for x in state]
             batch = None
             for a, x in zip(args, arrays):
@@ -147,6 +147,13 @@ class Dynamics:
                 dtype = jnp.result_type(float)
                 arrays = [x.astype(dtype) for x in arrays]
             p = self.param_vector(params, dtype)
+            if not batch and pair:
+                # One state alone: XLA turns the broadcast inputs back into scalars and splits the function
+                # into a kernel per shared value (20 for the Panda's mass matrix: 117 us a call on 2
+                # cores). Mapped over the state and a second, all-zero one, it stays one kernel (8 us).
+                # Only at the outermost call: inside a caller's trace an enclosing vmap may batch it.
+                pairs = [jnp.stack([x, jnp.zeros_like(x)]) for x in arrays]
+                return jax.vmap(raw, in_axes=(*([0] * len(pairs)), None))(*pairs, p)[0]
             if not batch:
                 return plain(*arrays, p)
             flat = [x.reshape((-1, *arg_shapes[a])) for a, x in zip(args, arrays)]
@@ -156,14 +163,14 @@ class Dynamics:
         if name == "forward_kinematics":
             frames = self.frame_names
 
-            def call_fk(*state, params=None):
-                poses = call(*state, params=params)
+            def call_fk(*state, params=None, pair=False):
+                poses = call(*state, params=params, pair=pair)
                 return {f: poses[..., k, :, :] for k, f in enumerate(frames)}
 
             body = call_fk
         else:
             body = call
-        jitted = jax.jit(body, compiler_options=compiler_options())
+        jitted = jax.jit(functools.partial(body, pair=True), compiler_options=compiler_options())
         nested = jax.jit(body)  # inside a caller's trace, the outermost jit's compiler options apply
         takes_wrench = name == "inverse_dynamics"
 
