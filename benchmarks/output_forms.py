@@ -14,13 +14,15 @@ it, and timed interleaved (medians per state). Forms:
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
 :mod:`jaxskid._helpers_source` (what jaxskid generates). Pinocchio's ``crba`` (or ``rnea``) per call from
-Python is printed beside them (``computeCoriolisMatrix`` for ``--quantity coriolis_matrix``).
+Python is printed beside them (``computeCoriolisMatrix``, ``aba`` for the other quantities). For
+``forward_dynamics`` the pivots' reciprocals are also timed as plain divisions (``/ division``).
 """
 
 from __future__ import annotations
 
 import argparse
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -38,13 +40,15 @@ from jaxskid._dynamics import compiler_options  # noqa: E402
 from jaxskid._lower import _Printer, function_source  # noqa: E402
 from jaxskid._helpers_source import SOURCE as HELPERS  # noqa: E402
 
+ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 URDF = ERD / "panda_description/urdf/panda.urdf"
 LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 
 
-def variants(eqs, name: str) -> dict[str, tuple[str, bool]]:
-    """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, and whether to spread."""
+def variants(eqs, name: str) -> dict[str, tuple[str, bool, bool]]:
+    """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, whether to spread, and
+    whether reciprocals are divisions instead of Newton's iteration."""
     generated = function_source(eqs, name)
     body = generated[: generated.index("\n\n\n@jax.custom_jvp")] + "\n"
     head = body[: body.index("    _z = jnp.zeros(")]
@@ -63,18 +67,22 @@ def variants(eqs, name: str) -> dict[str, tuple[str, bool]]:
              "nested-where": (body, False), "broadcast-nested": (body, True)}
     out = {}
     for form, (src, spread) in forms.items():
-        out[f"{form} / fused"] = (src, spread)
-        out[f"{form} / xla"] = (re.sub(r"\b_(sin|cos)\(", r"jnp.\1(", src), spread)
+        out[f"{form} / fused"] = (src, spread, False)
+        out[f"{form} / xla"] = (re.sub(r"\b_(sin|cos)\(", r"jnp.\1(", src), spread, False)
+        if "_recip(" in src:  # the pivots of forward dynamics: Newton's iteration against a division
+            out[f"{form} / fused / division"] = (src, spread, True)
     return out
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quantity", default="mass_matrix", choices=("mass_matrix", "inverse_dynamics", "coriolis_matrix"))
+    ap.add_argument("--quantity", default="mass_matrix", choices=("mass_matrix", "inverse_dynamics", "coriolis_matrix", "forward_dynamics"))
     ap.add_argument("--batch", type=int, default=65536)
     ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--robot", default="panda", choices=("panda", "quadruped"),
+                    help="the Panda URDF (fingers locked) or robots/quadruped_12dof.yaml (a 12-DOF tree)")
     args = ap.parse_args(argv)
-    robot = jaxskid.load(URDF, lock=LOCK)
+    robot = jaxskid.load(URDF, lock=LOCK) if args.robot == "panda" else jaxskid.load(ROOT / "robots/quadruped_12dof.yaml")
     eqs = jaxskid.derive(robot, [args.quantity])
     nargs = len(eqs.quantities[args.quantity].args)
     rng = np.random.default_rng(0)
@@ -82,9 +90,11 @@ def main(argv=None):
     p = jnp.asarray([robot.default_params()[k] for k in eqs.parameters])
     fns, ref = {}, None
     shape = tuple(eqs.quantities[args.quantity].shape)
-    for label, (src, spread) in variants(eqs, args.quantity).items():
+    for label, (src, spread, division) in variants(eqs, args.quantity).items():
         ns = {"jax": jax, "jnp": jnp}
         exec(HELPERS, ns)  # noqa: S102
+        if division:
+            ns["_recip"] = lambda x: 1.0 / x
         exec(src, ns)  # noqa: S102
         body, how = ns["_" + args.quantity], ns["_spread"](shape) if spread else ns["_same"]
         fn = lambda *a, body=body, how=how: body(*a, how)  # noqa: E731
@@ -101,15 +111,22 @@ def main(argv=None):
             t0 = time.perf_counter()
             jax.block_until_ready(f(*states, p))
             times[label].append((time.perf_counter() - t0) / args.batch)
-    model = pin.buildReducedModel(pin.buildModelFromUrdf(str(URDF)),
-                                  [pin.buildModelFromUrdf(str(URDF)).getJointId(j) for j in LOCK],
-                                  pin.neutral(pin.buildModelFromUrdf(str(URDF))))
+    if args.robot == "panda":
+        model = pin.buildReducedModel(pin.buildModelFromUrdf(str(URDF)),
+                                      [pin.buildModelFromUrdf(str(URDF)).getJointId(j) for j in LOCK],
+                                      pin.neutral(pin.buildModelFromUrdf(str(URDF))))
+    else:  # the same description, built in Pinocchio by the tests' converter
+        sys.path.insert(0, str(ROOT / "tests"))
+        from pinref import to_pinocchio
+
+        model, _ = to_pinocchio(robot, robot.default_params())
     data = model.createData()
     qs = [np.asarray(s[:2000]) for s in states]
     call, peer_name = {
         "mass_matrix": (lambda k: pin.crba(model, data, qs[0][k]), "crba"),
         "inverse_dynamics": (lambda k: pin.rnea(model, data, qs[0][k], qs[1][k], qs[2][k]), "rnea"),
         "coriolis_matrix": (lambda k: pin.computeCoriolisMatrix(model, data, qs[0][k], qs[1][k]), "computeCoriolisMatrix"),
+        "forward_dynamics": (lambda k: pin.aba(model, data, qs[0][k], qs[1][k], qs[2][k]), "aba"),
     }[args.quantity]
     peer = []
     for _ in range(5):
@@ -118,7 +135,7 @@ def main(argv=None):
             call(k)
         peer.append((time.perf_counter() - t0) / len(qs[0]))
     peer_t = float(np.median(peer))
-    print(f"{args.quantity}, Panda 7 DOF, {len(eqs.parameters)} symbolic parameters, float64, batch {args.batch}, "
+    print(f"{args.quantity}, {args.robot} {robot.n_dof} DOF, {len(eqs.parameters)} symbolic parameters, float64, batch {args.batch}, "
           f"jax {jax.__version__}; Pinocchio {peer_name} "
           f"{peer_t * 1e9:.0f} ns per call")
     print(f"{'form / trig':24s} {'ns/state':>9s} {'x Pinocchio':>12s} {'kernels':>8s} {'compile s':>10s} {'max rel diff':>13s}")

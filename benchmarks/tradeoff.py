@@ -14,8 +14,8 @@ evaluation in JAX of ``jaxskid._recursive``; float64 and float32) it measures:
   mpmath evaluation of the same symbolic expressions (``jaxskid._reference``; each option's own
   expressions are checked to give the same 50-digit values), and against Pinocchio.
 
-Rollouts: ``jaxskid.rollout`` (forward dynamics ``qdd = M^-1 (tau - C qd - Q_grav)`` by an unrolled LDL^T
-solve) with tau = 0, from rest under gravity; semi-implicit Euler and RK4 at several step sizes, time per
+Rollouts: ``jaxskid.rollout`` (forward dynamics ``qdd = M^-1 (tau - C qd - Q_grav)`` by the closed-form
+quantity ``forward_dynamics``) with tau = 0, from rest under gravity; semi-implicit Euler and RK4 at several step sizes, time per
 state and step, and the error of q at the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
 extrapolation from a second reference at twice its step).
 
@@ -260,12 +260,12 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
 
 
 def rollouts(robot, q0, params, repeats: int, cache: str) -> dict:
-    """Passive rollouts from rest with ``jaxskid.rollout`` (forward dynamics by an unrolled LDL^T solve, the
-    trajectory stored): time per state and step, and the error of q at the horizon."""
+    """Passive rollouts from rest with ``jaxskid.rollout`` (closed-form forward dynamics, the trajectory
+    stored): time per state and step, and the error of q at the horizon."""
     _setup_jax()
     import jaxskid
 
-    dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"], cache_dir=cache)
+    dyn = jaxskid.lower(robot, ["forward_dynamics"], cache_dir=cache)
     integrators = {"RK4": jaxskid.RK4(), "semi-implicit Euler": jaxskid.SemiImplicitEuler()}
     n = robot.n_dof
     x0 = np.concatenate([q0, np.zeros_like(q0)], axis=1)
@@ -344,7 +344,7 @@ def table(results: list[dict], rollout_results: dict, args) -> str:
             compile_s = sum(r["compile"][dtype, q] for q in QUANTITIES)
             lines.append(f"| {r['robot']} | {r['setting']} | {dtype} | {r['derive']:.2f} | {ops} | {compile_s:.1f} | "
                          + " | ".join(cells) + " |")
-    lines += ["", "Rollouts: `jaxskid.rollout` (qdd = M^-1 (-C qd - Q_grav) by unrolled LDL^T, tau = 0, trajectory "
+    lines += ["", "Rollouts: `jaxskid.rollout` (qdd = M^-1 (-C qd - Q_grav), closed-form forward dynamics, tau = 0, trajectory "
               "stored), from rest at "
               f"{N_ROLLOUTS} states q0 ~ U(-1, 1), horizon {HORIZON} s, closed form (default options). Error = max "
               "|q(T) - q_ref(T)| in rad against RK4 at the reference step; the reference's own error is estimated "
