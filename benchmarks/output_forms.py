@@ -138,10 +138,10 @@ def main(argv=None):
     print(f"{args.quantity}, {args.robot} {robot.n_dof} DOF, {len(eqs.parameters)} symbolic parameters, float64, batch {args.batch}, "
           f"jax {jax.__version__}; Pinocchio {peer_name} "
           f"{peer_t * 1e9:.0f} ns per call")
-    print(f"{'form / trig':24s} {'ns/state':>9s} {'x Pinocchio':>12s} {'kernels':>8s} {'compile s':>10s} {'max rel diff':>13s}")
+    print(f"{'form / trig':36s} {'ns/state':>9s} {'x Pinocchio':>12s} {'kernels':>8s} {'compile s':>10s} {'max rel diff':>13s}")
     for label, (_f, t_compile, kernels, err) in fns.items():
         t = float(np.median(times[label]))
-        print(f"{label:24s} {t * 1e9:9.1f} {peer_t / t:12.1f} {kernels:8d} {t_compile:10.2f} {err:13.1e}")
+        print(f"{label:36s} {t * 1e9:9.1f} {peer_t / t:12.1f} {kernels:8d} {t_compile:10.2f} {err:13.1e}")
 
 
 if __name__ == "__main__":
