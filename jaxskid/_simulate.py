@@ -27,6 +27,7 @@ from jax.sharding import Mesh, PartitionSpec
 
 from ._dynamics import Dynamics
 from ._errors import RequestError, ShapeError
+from ._helpers_source import SOURCE as HELPERS_SOURCE
 
 
 # ---------------------------------------------------------------------------------------- helpers
@@ -40,34 +41,17 @@ def _assemble(values: Sequence, dtype) -> jax.Array:
     return out
 
 
-@jax.custom_jvp
-def _reciprocal(d: jax.Array) -> jax.Array:
-    """``1 / d`` by Newton's iteration ``r <- r (2 - d r)`` from a bit-level first guess.
-
-    XLA on CPU will not fuse a division whose result has several users (it counts division as expensive
-    and refuses to duplicate it), so each pivot reciprocal of the factorisation would cut the fused kernel
-    in pieces that recompute their shared inputs (measured: 1.2 us instead of 0.9 us per Panda state, and
-    5 us with a division per entry). Multiplications and adds fuse. The first guess (the exponent negated
-    by an integer subtraction of the bit pattern, Lomont's "fast inverse" constant for 1/x) is within 12.5
-    %; five iterations (four in float32) reach the rounding error. Valid for positive, normal ``d``; zero
-    and non-finite pivots give nan or inf, as a singular matrix should.
-    """
-    if d.dtype == jnp.float64:
-        bits, magic, iters = jnp.int64, 0x7FDE623822835EEA, 5
-    else:
-        bits, magic, iters = jnp.int32, 0x7EF311C3, 4
-    a = jnp.abs(d)
-    r = jax.lax.bitcast_convert_type(jnp.asarray(magic, bits) - jax.lax.bitcast_convert_type(a, bits), d.dtype)
-    for _ in range(iters):
-        r = r * (2.0 - a * r)
-    return jnp.where(d < 0, -r, r)
+def _helper(name: str) -> Callable:
+    namespace = {"jax": jax, "jnp": jnp}
+    exec(HELPERS_SOURCE, namespace)  # noqa: S102 - jaxskid's own helper source, as in every generated module
+    return namespace[name]
 
 
-@_reciprocal.defjvp
-def _reciprocal_jvp(primals, tangents):
-    (d,), (dd,) = primals, tangents
-    r = _reciprocal(d)
-    return r, -r * r * dd
+_reciprocal = _helper("_recip")
+"""``1 / d`` by Newton's iteration from a bit-level first guess, the same as in generated modules
+(:mod:`jaxskid._helpers_source`): XLA on CPU will not fuse a division whose result has several users, so
+each pivot reciprocal of the factorisation would cut the fused kernel in pieces that recompute their
+shared inputs (measured: 1.2 us instead of 0.9 us per Panda state, and 5 us with a division per entry)."""
 
 
 def _materialize(x: jax.Array) -> jax.Array:
