@@ -150,7 +150,7 @@ def main(argv=None):
             return jnp.sum(r * r)
 
         for label, loss in (("through inverse_dynamics", loss_tau), ("through the regressor", loss_reg)):
-            f, g = jax.jit(loss), jax.jit(jax.grad(loss))
+            f, g = jaxskid.jit(loss), jaxskid.jit(jax.grad(loss))
             t0 = time.perf_counter()
             jax.block_until_ready(g(p0))
             compile_s = time.perf_counter() - t0

@@ -243,7 +243,8 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
             p = jnp.asarray(params, dtype=dtype)
             for q in QUANTITIES:
                 args = [jnp.asarray(states[a], dtype=dtype) for a in ARGS[q]]
-                f = jax.jit(jax.vmap(source.raw(q), in_axes=(*([0] * len(args)), None)))
+                f = jax.jit(jax.vmap(source.raw(q), in_axes=(*([0] * len(args)), None)),
+                            compiler_options=jaxskid.compiler_options())  # as jaxskid compiles its own
                 t = time.perf_counter()
                 compiled = f.lower(*args, p).compile()
                 row["compile"][dtype, q] = time.perf_counter() - t

@@ -8,7 +8,7 @@ from . import _derivatives  # noqa: F401  (registers the time derivatives and th
 from . import _forward  # noqa: F401  (registers the closed-form forward dynamics)
 from ._regressor import params_from_standard, standard_parameter_names, standard_params
 from ._lower import cache_dir
-from ._dynamics import Dynamics
+from ._dynamics import Dynamics, compiler_options, jit
 from ._api import load, lower
 from ._native import BuildError, NativeDynamics, compile_native
 from . import codegen
@@ -27,6 +27,8 @@ __all__ = [
     "DEFAULT_QUANTITIES",
     "BuildError",
     "Dynamics",
+    "compiler_options",
+    "jit",
     "Equations",
     "QUANTITIES",
     "cache_dir",

@@ -32,6 +32,35 @@ def _plain(body: Callable, same: Callable, *args):
     return body(*args, same)
 
 
+def _traced(tree) -> bool:
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
+
+
+def jit(fn: Callable | None = None, **jit_kwargs) -> Callable:
+    """``jax.jit`` with :func:`compiler_options` where they may be given: at the outermost call.
+
+    Wrap your own functions of jaxskid's quantities with it (as jaxskid wraps its rollouts and fits): with
+    XLA's default CPU emitters, the long straight-line programs compile into code up to 1000x slower.
+    JAX accepts compiler options only on a top-level jit, so inside a caller's trace this is a plain
+    ``jax.jit`` (and the caller's options apply). Keyword arguments go to ``jax.jit``; usable as a
+    decorator, with or without them.
+    """
+    if fn is None:
+        return functools.partial(jit, **jit_kwargs)
+    nested = jax.jit(fn, **jit_kwargs)
+    top: list = []
+
+    @functools.wraps(fn)
+    def call(*args, **kwargs):
+        if _traced((args, kwargs)):
+            return nested(*args, **kwargs)
+        if not top:
+            top.append(jax.jit(fn, compiler_options=compiler_options(), **jit_kwargs))
+        return top[0](*args, **kwargs)
+
+    return call
+
+
 class Dynamics:
     """Lowered quantities of one robot. Build it with :func:`jaxskid.lower`.
 
@@ -171,7 +200,7 @@ class Dynamics:
         else:
             body = call
         jitted = jax.jit(functools.partial(body, pair=True), compiler_options=compiler_options())
-        nested = jax.jit(body)  # inside a caller's trace, the outermost jit's compiler options apply
+        nested = jax.jit(body)  # inside a caller's trace, the outermost jit's compiler options apply (see jit)
         takes_wrench = name == "inverse_dynamics"
 
         def fn(*state, params=None, wrench=None):
@@ -181,8 +210,7 @@ class Dynamics:
                 *state, params = state
             if len(state) != len(args):
                 raise ShapeError(f"{name} takes ({', '.join(args)}, params), got {len(state)} state argument(s)")
-            traced = any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves((state, params)))
-            out = (nested if traced else jitted)(*state, params=params)
+            out = (nested if _traced((state, params)) else jitted)(*state, params=params)
             if wrench is not None:
                 if not takes_wrench:
                     raise ShapeError(f"{name} takes no wrench")

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from ._dynamics import Dynamics
+from ._dynamics import Dynamics, jit
 from ._errors import RequestError, ShapeError
 from ._simulate import RK4, Trajectory, _param_array, rollout
 
@@ -374,7 +374,7 @@ def fit(loss: Callable, theta0, *, optimizer=None, steps: int = 1000) -> FitResu
     optimizer = optimizer or Adam(1e-2)
     value_and_grad = jax.value_and_grad(loss)
 
-    @jax.jit
+    @jit
     def run(theta0):
         def step(carry, _):
             theta, state = carry

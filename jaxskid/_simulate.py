@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-from ._dynamics import Dynamics
+from ._dynamics import Dynamics, jit
 from ._errors import RequestError, ShapeError
 from ._helpers_source import SOURCE as HELPERS_SOURCE
 
@@ -171,7 +171,7 @@ def _float_dtype(*arrays):
     return dt if jnp.issubdtype(dt, jnp.floating) else jnp.result_type(float)
 
 
-@partial(jax.jit, static_argnames=("dyn",))
+@partial(jit, static_argnames=("dyn",))
 def _forward_dynamics(dyn, q, qd, tau, params, wrench):
     dtype = _float_dtype(q, qd, tau)
     q, qd, tau = (jnp.asarray(x, dtype) for x in (q, qd, tau))
@@ -363,10 +363,10 @@ def _rollout_one(dyn, controller, integrator, steps, x0, p, u, dt, batched=False
     return Trajectory(t, x, taus, z)
 
 
-_rollout_single = jax.jit(_rollout_one, static_argnames=("dyn", "controller", "integrator", "steps"))
+_rollout_single = jit(_rollout_one, static_argnames=("dyn", "controller", "integrator", "steps"))
 
 
-@partial(jax.jit, static_argnames=("dyn", "controller", "integrator", "steps", "p_batched", "u_batched", "devices"))
+@partial(jit, static_argnames=("dyn", "controller", "integrator", "steps", "p_batched", "u_batched", "devices"))
 def _rollout_batch(dyn, controller, integrator, steps, p_batched, u_batched, devices, x0, p, u, dt):
     one = partial(_rollout_one, dyn, controller, integrator, steps, batched=True)
     run = jax.vmap(one, in_axes=(0, 0 if p_batched else None, 0 if u_batched else None, None))

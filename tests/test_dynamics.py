@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import jax
 import jax.numpy as jnp
@@ -239,3 +241,26 @@ def test_generated_functions_inside_a_users_jit(panda_tau):
     q, qd, qdd = (jnp.asarray(rng.normal(size=(16, 7))) for _ in range(3))
     inside = jax.jit(lambda a, b, c, p: dyn.inverse_dynamics(a, b, c, p) * 2.0)(q, qd, qdd, dyn.param_vector())
     np.testing.assert_allclose(np.asarray(inside), 2.0 * np.asarray(dyn.inverse_dynamics(q, qd, qdd)), rtol=1e-14)
+
+
+def test_jit_helper_at_top_level_and_inside_a_callers_trace():
+    """jaxskid.jit compiles with jaxskid's compiler options from Python, and is a plain jit inside another
+    trace (JAX accepts compiler options only on a top-level jit)."""
+    robot = jaxskid.load(Path(__file__).resolve().parents[1] / "robots" / "double_pendulum.yaml")
+    dyn = jaxskid.lower(robot, ["mass_matrix", "gravity_torques"])
+    q = jnp.asarray([[0.3, -0.7], [1.1, 0.2]])
+
+    @jaxskid.jit
+    def energy_like(q):
+        return jnp.sum(dyn.mass_matrix(q)) + jnp.sum(dyn.gravity_torques(q))
+
+    ref = float(jnp.sum(dyn.mass_matrix(q)) + jnp.sum(dyn.gravity_torques(q)))
+    assert float(energy_like(q)) == pytest.approx(ref, rel=1e-14)
+    outer = jax.jit(lambda q: energy_like(q) * 2.0)  # nested: must not pass compiler options again
+    assert float(outer(q)) == pytest.approx(2 * ref, rel=1e-14)
+    grad = jax.grad(energy_like)(q)
+    eps = 1e-6
+    num = (energy_like(q.at[0, 1].add(eps)) - energy_like(q.at[0, 1].add(-eps))) / (2 * eps)
+    assert float(grad[0, 1]) == pytest.approx(float(num), rel=1e-7)
+    scaled = jaxskid.jit(lambda q, k: dyn.gravity_torques(q) * k, static_argnames=("k",))
+    np.testing.assert_allclose(np.asarray(scaled(q, k=3)), 3 * np.asarray(dyn.gravity_torques(q)), rtol=1e-14)
