@@ -43,7 +43,7 @@ from ._helpers_source import SOURCE as HELPERS_SOURCE
 
 log = logging.getLogger("jaxskid")
 
-GENERATOR_VERSION = "3"
+GENERATOR_VERSION = "4"
 _CHECK_PREFIX = "# jaxskid-checksum: "
 
 
