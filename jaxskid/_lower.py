@@ -128,7 +128,10 @@ def _assemble(shape: tuple[int, ...], outputs: list, rename: dict, printer: _Pri
 
 
 def function_source(eqs: Equations, name: str, printer: _Printer | None = None) -> str:
-    """Source of ``def name(*args, p)`` for one quantity (see the module docstring for the form)."""
+    """Source of one quantity: ``_name(*args, p, spread)``, the program (``spread`` broadcasts each input
+    entry to the output's shape, or is the identity), and ``name(*args, p)``, the ``jax.custom_jvp``
+    that runs it broadcast and differentiates it unbroadcast (see the module docstring and
+    :mod:`jaxskid._helpers_source`)."""
     printer = printer or _Printer()
     qty = eqs.quantities[name]
     prog = eqs.program([name])
