@@ -36,6 +36,22 @@ def _traced(tree) -> bool:
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
 
 
+def _outermost(top: Callable, nested: Callable, **jit_kwargs) -> Callable:
+    """Call ``top`` jitted with :func:`compiler_options` from Python, ``nested`` plainly jitted inside a
+    caller's trace (JAX accepts compiler options only on a top-level jit)."""
+    nested_jit = jax.jit(nested, **jit_kwargs)
+    top_jit: list = []  # compiled on first use: compiler_options() asks for the backend
+
+    def call(*args, **kwargs):
+        if _traced((args, kwargs)):
+            return nested_jit(*args, **kwargs)
+        if not top_jit:
+            top_jit.append(jax.jit(top, compiler_options=compiler_options(), **jit_kwargs))
+        return top_jit[0](*args, **kwargs)
+
+    return call
+
+
 def jit(fn: Callable | None = None, **jit_kwargs) -> Callable:
     """``jax.jit`` with :func:`compiler_options` where they may be given: at the outermost call.
 
@@ -47,18 +63,7 @@ def jit(fn: Callable | None = None, **jit_kwargs) -> Callable:
     """
     if fn is None:
         return functools.partial(jit, **jit_kwargs)
-    nested = jax.jit(fn, **jit_kwargs)
-    top: list = []
-
-    @functools.wraps(fn)
-    def call(*args, **kwargs):
-        if _traced((args, kwargs)):
-            return nested(*args, **kwargs)
-        if not top:
-            top.append(jax.jit(fn, compiler_options=compiler_options(), **jit_kwargs))
-        return top[0](*args, **kwargs)
-
-    return call
+    return functools.wraps(fn)(_outermost(fn, fn, **jit_kwargs))
 
 
 class Dynamics:
@@ -199,8 +204,7 @@ class Dynamics:
             body = call_fk
         else:
             body = call
-        jitted = jax.jit(functools.partial(body, pair=True), compiler_options=compiler_options())
-        nested = jax.jit(body)  # inside a caller's trace, the outermost jit's compiler options apply (see jit)
+        compiled = _outermost(functools.partial(body, pair=True), body)
         takes_wrench = name == "inverse_dynamics"
 
         def fn(*state, params=None, wrench=None):
@@ -210,7 +214,7 @@ class Dynamics:
                 *state, params = state
             if len(state) != len(args):
                 raise ShapeError(f"{name} takes ({', '.join(args)}, params), got {len(state)} state argument(s)")
-            out = (nested if _traced((state, params)) else jitted)(*state, params=params)
+            out = compiled(*state, params=params)
             if wrench is not None:
                 if not takes_wrench:
                     raise ShapeError(f"{name} takes no wrench")

@@ -37,9 +37,9 @@ from sympy.printing.numpy import JaxPrinter
 from sympy.printing.precedence import PRECEDENCE
 
 from ._equations import Equations, Options, derive, resolve
+from ._helpers_source import SOURCE as HELPERS_SOURCE
 from ._model import Robot
 from ._printing import NumberTweaks
-from ._helpers_source import SOURCE as HELPERS_SOURCE
 
 log = logging.getLogger("jaxskid")
 
@@ -58,14 +58,14 @@ class _Printer(NumberTweaks, JaxPrinter):
 
     def _print_Pow(self, expr, rational=False):
         base, exp = expr.args
-        if exp.is_Integer and -8 <= int(exp) < 0:  # 1/x as Newton's iteration (see _helpers_source)
-            return f"_recip({self._print(base ** -exp)})"
+        if exp.is_Integer and -8 <= int(exp) < 0 or exp == -sp.Rational(1, 2):  # 1/x by Newton (_helpers_source)
+            return f"_recip({self._print(sp.Pow(base, -exp, evaluate=False))})"
         return super()._print_Pow(expr, rational)
 
     def _print_Mul(self, expr):
         # sympy prints a/b for negative powers inside a product; keep them as factors so that
         # _print_Pow turns them into _recip
-        factors = [self._print_Pow(f) if f.is_Pow and f.exp.is_Integer and f.exp < 0 else None for f in expr.args]
+        factors = [self._print_Pow(f) if f.is_Pow and f.exp.is_Rational and f.exp < 0 else None for f in expr.args]
         if not any(factors):
             return super()._print_Mul(expr)
         rest = sp.Mul(*[f for f, printed in zip(expr.args, factors) if printed is None], evaluate=False)

@@ -118,32 +118,32 @@ def accelerations(dyn: Dynamics, batched: bool = True) -> Callable:
     function will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`).
     """
     _require(dyn, "forward_dynamics")
+
+    def raw(name: str) -> Callable:
+        return dyn.raw(name, batched)
+
     if "forward_dynamics" in dyn.quantities:
-        closed = dyn.raw("forward_dynamics", batched)
-
-        def qdd_closed(q, qd, tau, p, wrench=None):
-            if wrench is not None:
-                tau = tau - dyn.raw("external_torques")(q, wrench, p)
-            return _materialize(closed(q, qd, tau, p))
-
-        return qdd_closed
-    mass = dyn.raw("mass_matrix")
-    if "inverse_dynamics" in dyn.quantities:
-        rnea = dyn.raw("inverse_dynamics")
-
-        def bias(q, qd, p):
-            return rnea(q, qd, jnp.zeros_like(qd), p)
+        solve = raw("forward_dynamics")
     else:
-        cor, grav = dyn.raw("coriolis_torques"), dyn.raw("gravity_torques")
+        mass = raw("mass_matrix")
+        if "inverse_dynamics" in dyn.quantities:
+            rnea = raw("inverse_dynamics")
 
-        def bias(q, qd, p):
-            return cor(q, qd, p) + grav(q, p)
+            def bias(q, qd, p):
+                return rnea(q, qd, jnp.zeros_like(qd), p)
+        else:
+            cor, grav = raw("coriolis_torques"), raw("gravity_torques")
+
+            def bias(q, qd, p):
+                return cor(q, qd, p) + grav(q, p)
+
+        def solve(q, qd, tau, p):
+            return ldl_solve(mass(q, p), tau - bias(q, qd, p))
 
     def qdd(q, qd, tau, p, wrench=None):
-        rhs = tau - bias(q, qd, p)
         if wrench is not None:
-            rhs = rhs - dyn.raw("external_torques")(q, wrench, p)
-        return _materialize(ldl_solve(mass(q, p), rhs))
+            tau = tau - raw("external_torques")(q, wrench, p)
+        return _materialize(solve(q, qd, tau, p))
 
     return qdd
 
