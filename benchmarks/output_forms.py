@@ -13,7 +13,7 @@ it, and timed interleaved (medians per state). Forms:
   generates).
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
-:mod:`jaxskid._helpers_source` (what jaxskid generates). Pinocchio's ``crba`` (or ``rnea``) per call from
+:mod:`jaxskid.lowering._helpers_source` (what jaxskid generates). Pinocchio's ``crba`` (or ``rnea``) per call from
 Python is printed beside them (``computeCoriolisMatrix``, ``aba`` for the other quantities). For
 ``forward_dynamics`` the pivots' reciprocals are also timed as plain divisions (``/ division``).
 """
@@ -36,9 +36,9 @@ import pinocchio as pin  # noqa: E402
 import sympy as sp  # noqa: E402
 
 import jaxskid  # noqa: E402
-from jaxskid._dynamics import compiler_options  # noqa: E402
-from jaxskid._lower import _Printer, function_source  # noqa: E402
-from jaxskid._helpers_source import SOURCE as HELPERS  # noqa: E402
+from jaxskid.runtime._dynamics import compiler_options  # noqa: E402
+from jaxskid.lowering._jax import _Printer, function_source  # noqa: E402
+from jaxskid.lowering._helpers_source import SOURCE as HELPERS  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"

@@ -3,7 +3,7 @@
     python benchmarks/tradeoff.py [--batch 16384] [--repeats 7] [--limit 45] [--out benchmarks/out]
 
 For each setting (CSE strategy, simplification, trig handling, closed form or the numeric recursive
-evaluation in JAX of ``jaxskid._recursive``; float64 and float32) it measures:
+evaluation in JAX of ``jaxskid.testing._recursive``; float64 and float32) it measures:
 
 * derive + print time (``jaxskid.lower`` on an empty cache) and the operation count, in a fresh process
   with a time limit (``--limit`` s): a setting that does not finish is reported as such;
@@ -11,7 +11,7 @@ evaluation in JAX of ``jaxskid._recursive``; float64 and float32) it measures:
   medians of ``--repeats`` calls, every compiled function of a robot interleaved with the others so that a
   loaded machine slows them alike;
 * the error of M, Q_grav and tau: max over 32 states of the normwise relative error against a 50-digit
-  mpmath evaluation of the same symbolic expressions (``jaxskid._reference``; each option's own
+  mpmath evaluation of the same symbolic expressions (``jaxskid.testing._reference``; each option's own
   expressions are checked to give the same 50-digit values), and against Pinocchio.
 
 Rollouts: ``jaxskid.rollout`` (forward dynamics ``qdd = M^-1 (tau - C qd - Q_grav)`` by the closed-form
@@ -212,7 +212,7 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
     import jax.numpy as jnp
 
     import jaxskid
-    from jaxskid._recursive import recursive_dynamics
+    from jaxskid.testing._recursive import recursive_dynamics
 
     rows, sources = [], {}
     for setting in SETTINGS:

@@ -22,7 +22,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
-from jaxskid._control import reference_derivatives  # noqa: E402
+from jaxskid.apps._control import reference_derivatives  # noqa: E402
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "arm_2r.yaml"
 

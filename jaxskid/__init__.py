@@ -1,25 +1,25 @@
 """jaxskid: closed-form rigid-body equations of motion, derived in SymPy and lowered to JAX."""
 
 from ._errors import JaxskidError, ModelError, RequestError, ShapeError
-from ._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
-from ._model import Frame, Joint, Robot, spatial_to_body, symbol
-from ._equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
-from . import _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
-from . import _forward  # noqa: F401  (registers the closed-form forward dynamics)
-from ._regressor import params_from_standard, standard_parameter_names, standard_params
-from ._lower import cache_dir
-from ._dynamics import Dynamics, compiler_options, jit
+from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
+from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
+from .equations._derive import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
+from .symbolic import _time_derivatives as _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
+from .symbolic import _forward  # noqa: F401  (registers the closed-form forward dynamics)
+from .symbolic._regressor import params_from_standard, standard_parameter_names, standard_params
+from .lowering._jax import cache_dir
+from .runtime._dynamics import Dynamics, compiler_options, jit
 from ._api import load, lower
-from ._native import BuildError, NativeDynamics, compile_native
+from .runtime._native import BuildError, NativeDynamics, compile_native
 from . import codegen
-from ._urdf import read_urdf
-from ._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, forward_dynamics, mass_matrix_condition, rollout
-from ._identification import (
+from .description._urdf import read_urdf
+from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, forward_dynamics, mass_matrix_condition, rollout
+from .apps._identification import (
     Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky, Standard,
     WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
 )
-from ._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor
-from ._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
+from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor
+from .description._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
 
 __version__ = "0.1.0"
 

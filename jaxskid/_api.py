@@ -6,11 +6,11 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from ._dynamics import Dynamics
-from ._equations import Options
+from .runtime._dynamics import Dynamics
+from .equations._derive import Options
 from ._errors import ModelError
-from ._lower import generate_module
-from ._model import Robot
+from .lowering._jax import generate_module
+from .model._robot import Robot
 
 
 def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **options) -> Robot:
@@ -22,11 +22,11 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **
     p = Path(path)
     ext = p.suffix.lower()
     if ext == ".urdf":
-        from ._urdf import read_urdf
+        from .description._urdf import read_urdf
 
         return read_urdf(p, lock=lock, **options)
     if ext in (".yaml", ".yml", ".json"):
-        from ._yaml import read_description
+        from .description._yaml import read_description
 
         if options:
             raise ModelError(f"unknown option(s) {', '.join(options)} for a {ext} file", source=str(p))

@@ -50,7 +50,7 @@ class CommaList(click.ParamType):
 
 
 def _quantity_names():
-    from ._equations import QUANTITIES
+    from .equations._derive import QUANTITIES
 
     return tuple(QUANTITIES)
 
@@ -164,7 +164,7 @@ def generate(robot, targets, quantities, out, lock, symbolic, check, force):
     import jaxskid
 
     from . import codegen
-    from ._equations import resolve
+    from .equations._derive import resolve
 
     jax.config.update("jax_enable_x64", True)  # the generated code and the self-check are float64
 
@@ -224,7 +224,7 @@ def generate(robot, targets, quantities, out, lock, symbolic, check, force):
         if not defaults_known:
             click.echo("self-check: skipped (some parameters have no default value)")
         else:
-            from ._selfcheck import self_check
+            from .apps._selfcheck import self_check
 
             rows = self_check(dyn)
             if rows:
@@ -270,7 +270,7 @@ def template(structure, output, name, force):
     """
     import re
 
-    from ._templates import render_template
+    from .description._templates import render_template
 
     suffix = Path(output).suffix.lower()
     fmt = {".yaml": "yaml", ".yml": "yaml", ".json": "json", ".py": "py"}.get(suffix)
@@ -345,7 +345,7 @@ def round_robot(robot, tol: float):
 
     import sympy as sp
 
-    from ._model import Robot
+    from .model._robot import Robot
 
     def snap(x: float):
         for target in (0, 1, -1):

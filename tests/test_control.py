@@ -17,8 +17,8 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from jaxskid._control import reference_derivatives
-from jaxskid._identification import random_states
+from jaxskid.apps._control import reference_derivatives
+from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
 

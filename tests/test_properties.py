@@ -13,7 +13,7 @@ mass), numeric or as 10 symbolic standard parameters per body. The same robot is
 
 The derived program is evaluated with NumPy by ``jaxskid._reference.evaluate`` (nothing compiled), so that a
 few hundred fresh robots take a few minutes; a few examples go through the real JAX lowering, and through the
-numeric recursive evaluation of ``jaxskid._recursive``.
+numeric recursive evaluation of ``jaxskid.testing._recursive``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from hypothesis import strategies as st
 import jaxskid
 from jaxskid import Frame, Joint, Robot
 from jaxskid import _reference as ref_
-from jaxskid._recursive import recursive_dynamics
+from jaxskid.testing._recursive import recursive_dynamics
 from pinref import to_pinocchio
 
 QUANTITIES = ("mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics")

@@ -18,7 +18,7 @@ import pytest
 import scipy.stats
 
 import jaxskid
-from jaxskid._identification import random_states
+from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
 

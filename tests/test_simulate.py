@@ -21,7 +21,7 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from jaxskid._identification import random_states
+from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
 
@@ -258,12 +258,12 @@ def test_sharded_rollout_equals_unsharded(tmp_path):
 
 
 def test_closed_form_forward_dynamics_on_the_tape():
-    """The symbolic sparse L^T D L forward dynamics (jaxskid._forward), evaluated in floating point by
+    """The symbolic sparse L^T D L forward dynamics (jaxskid.symbolic._forward), evaluated in floating point by
     SymPy (no lowering, no Newton reciprocal), equals Pinocchio's aba on a random tree."""
     import sympy as sp
 
-    from jaxskid._forward import forward_dynamics_outputs
-    from jaxskid._symbolic import Kinematics, Tape
+    from jaxskid.symbolic._forward import forward_dynamics_outputs
+    from jaxskid.symbolic._kinematics import Kinematics, Tape
 
     rng = np.random.default_rng(14)
     robot = random_robot(rng, 5, tree=True, prismatic=0.3)
@@ -285,7 +285,7 @@ def test_closed_form_forward_dynamics_on_the_tape():
 
 
 def test_ldl_solve_matches_numpy_and_rejects_indefinite_matrices():
-    from jaxskid._simulate import ldl_solve
+    from jaxskid.apps._simulate import ldl_solve
 
     rng = np.random.default_rng(7)
     a = rng.normal(size=(6, 6))

@@ -6,7 +6,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from jaxskid._helpers_source import SOURCE
+from jaxskid.lowering._helpers_source import SOURCE
 
 
 @pytest.fixture(scope="module")

@@ -18,8 +18,8 @@ import pytest
 import sympy as sp
 
 from jaxskid import ModelError
-from jaxskid._lie import STANDARD_PARAMETER_NAMES
-from jaxskid._urdf import read_urdf
+from jaxskid.model._lie import STANDARD_PARAMETER_NAMES
+from jaxskid.description._urdf import read_urdf
 
 DATA = Path(__file__).parent / "data" / "urdf"
 ROBOTS = Path(
@@ -157,7 +157,7 @@ def test_ten_standard_parameters_per_moving_body(case):
 
 
 def test_panda_fixed_links_frames_and_end_effectors(caplog):
-    with caplog.at_level(logging.WARNING, logger="jaxskid._urdf"):
+    with caplog.at_level(logging.WARNING, logger="jaxskid.description._urdf"):
         robot = read_urdf(PANDA)
     assert robot.base == "panda_link0"
     assert robot.n_dof == 9
@@ -168,7 +168,7 @@ def test_panda_fixed_links_frames_and_end_effectors(caplog):
     # panda_finger_joint2 mimics panda_finger_joint1: read as independent (as Pinocchio's default), and said so
     assert "joint[name=panda_finger_joint2].mimic" in caplog.text
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="jaxskid._urdf"):
+    with caplog.at_level(logging.WARNING, logger="jaxskid.description._urdf"):
         locked = read_urdf(PANDA, lock=FINGERS, end_effectors=["panda_hand_tcp"])
     assert caplog.text == ""
     assert locked.n_dof == 7 and locked.end_effectors == ("panda_hand_tcp",)

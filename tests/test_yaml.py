@@ -1,4 +1,4 @@
-"""The YAML/JSON reader and writer (jaxskid._yaml): syntax variants, seed robots, round trips, bad input.
+"""The YAML/JSON reader and writer (jaxskid.description._yaml): syntax variants, seed robots, round trips, bad input.
 
 Variants are checked against each other and against hand-computed matrices; the seed robots against
 textbook closed forms through an independent numeric evaluation (body Jacobians built here with numpy).
@@ -17,7 +17,7 @@ import sympy as sp
 import yaml
 
 from jaxskid import Frame, Joint, ModelError, Robot, symbol
-from jaxskid._yaml import (
+from jaxskid.description._yaml import (
     parse_description,
     parse_extras,
     read_description,

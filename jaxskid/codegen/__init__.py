@@ -32,7 +32,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from .._equations import Equations
+from ..equations._derive import Equations
 from .._errors import RequestError
 from ._c import emit_c, emit_cpp
 from ._common import Kernel, Layout, stem

@@ -19,8 +19,8 @@ from functools import cached_property
 import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
-from .._equations import Equations
-from .._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
+from ..equations._derive import Equations
+from ..lowering._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
 
 # Words that cannot be a module, namespace or function name in one of the target languages.
 _RESERVED = frozenset(

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from sympy.printing.numpy import NumPyPrinter
 
-from .._lower import module_source, request_key
+from ..lowering._jax import module_source, request_key
 from ._common import Layout, NumberTweaks, comment, double, shape_str, unravel
 
 

@@ -18,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._dynamics import Dynamics
+from ..runtime._dynamics import Dynamics
 
 
 @dataclass(frozen=True)

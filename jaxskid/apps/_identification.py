@@ -1,7 +1,7 @@
 """Inertial-parameter identification: base parameters, (weighted) least squares, gradient fits.
 
 The equations of motion are linear in the standard parameters, ``tau = Y(q, qd, qdd) pi``
-(:mod:`jaxskid._regressor`). Not every combination of ``pi`` moves the joints; the identifiable ones are
+(:mod:`jaxskid.symbolic._regressor`). Not every combination of ``pi`` moves the joints; the identifiable ones are
 the **base parameters** ``pi_b = K pi``, found numerically by QR with column pivoting of the regressor
 stacked over random states (Gautier & Khalil, "Direct calculation of minimum set of inertial parameters
 of serial robots", IEEE T-RA 6(3), 1990; Gautier, "Numerical calculation of the base inertial parameters
@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from ._dynamics import Dynamics, jit
-from ._errors import RequestError, ShapeError
+from ..runtime._dynamics import Dynamics, jit
+from .._errors import RequestError, ShapeError
 from ._simulate import RK4, Trajectory, _param_array, rollout
 
 

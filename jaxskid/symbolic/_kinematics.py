@@ -23,8 +23,8 @@ from functools import cached_property
 
 import sympy as sp
 
-from . import _lie as lie
-from ._model import Robot, symbol
+from ..model import _lie as lie
+from ..model._robot import Robot, symbol
 
 Vec = list  # a list of SymPy expressions
 

@@ -25,15 +25,15 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-from ._dynamics import Dynamics, jit
-from ._errors import RequestError, ShapeError
-from ._helpers_source import SOURCE as HELPERS_SOURCE
+from ..runtime._dynamics import Dynamics, jit
+from .._errors import RequestError, ShapeError
+from ..lowering._helpers_source import SOURCE as HELPERS_SOURCE
 
 
 # ---------------------------------------------------------------------------------------- helpers
 def _assemble(values: Sequence, dtype) -> jax.Array:
     """A vector from scalars by a chain of ``where`` selects (the output form XLA fuses into one loop,
-    see :mod:`jaxskid._lower`); ``jnp.stack`` would split the computation into slow kernels."""
+    see :mod:`jaxskid.lowering._jax`); ``jnp.stack`` would split the computation into slow kernels."""
     out = jnp.zeros((len(values),), dtype)
     index = jnp.arange(len(values))
     for k, v in enumerate(values):
@@ -49,7 +49,7 @@ def _helper(name: str) -> Callable:
 
 _reciprocal = _helper("_recip")
 """``1 / d`` by Newton's iteration from a bit-level first guess, the same as in generated modules
-(:mod:`jaxskid._helpers_source`): XLA on CPU will not fuse a division whose result has several users, so
+(:mod:`jaxskid.lowering._helpers_source`): XLA on CPU will not fuse a division whose result has several users, so
 each pivot reciprocal of the factorisation would cut the fused kernel in pieces that recompute their
 shared inputs (measured: 1.2 us instead of 0.9 us per Panda state, and 5 us with a division per entry)."""
 
@@ -113,7 +113,7 @@ def _require(dyn: Dynamics, what: str) -> None:
 def accelerations(dyn: Dynamics, batched: bool = True) -> Callable:
     """The single-state function ``qdd(q, qd, tau, p, wrench=None)`` with ``p`` a parameter vector.
 
-    With the quantity ``forward_dynamics`` lowered, this is the closed form (:mod:`jaxskid._forward`);
+    With the quantity ``forward_dynamics`` lowered, this is the closed form (:mod:`jaxskid.symbolic._forward`);
     otherwise M and the bias are evaluated and solved by :func:`ldl_solve`. ``batched``: whether the
     function will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`).
     """

@@ -38,12 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ._equations import Equations, derive, resolve
-from ._errors import JaxskidError, RequestError, ShapeError
-from ._lower import cache_dir as default_cache_dir
-from ._model import Robot
-from .codegen import Layout
-from .codegen._c import emit_c
+from ..equations._derive import Equations, derive, resolve
+from .._errors import JaxskidError, RequestError, ShapeError
+from ..lowering._jax import cache_dir as default_cache_dir
+from ..model._robot import Robot
+from ..codegen import Layout
+from ..codegen._c import emit_c
 
 CFLAGS = ("-O2", "-g0", "-std=c99", "-fPIC")
 BACKENDS = ("cffi", "ctypes")
@@ -345,7 +345,7 @@ class NativeDynamics:
     def __getattr__(self, name: str):
         if name.startswith("_"):
             raise AttributeError(name)
-        from ._equations import QUANTITIES
+        from ..equations._derive import QUANTITIES
 
         if name in QUANTITIES:
             raise RequestError(

@@ -15,8 +15,8 @@ from collections.abc import Sequence
 
 import sympy as sp
 
-from ._equations import QuantitySpec, register
-from ._symbolic import Kinematics
+from ..equations._derive import QuantitySpec, register
+from ._kinematics import Kinematics
 
 
 def forward_dynamics_outputs(kin: Kinematics, tau: Sequence[sp.Symbol]) -> list:

@@ -6,7 +6,7 @@ quantity is stored in the **body-fixed representation** (Müller 2018, sec. 2.3)
 * ``Joint.origin`` (``B_i``): the 4x4 pose of body ``i``'s frame in its parent's frame at ``q = 0``;
 * ``Joint.screw`` (``X_i``): the joint's unit screw coordinates ``(omega, v)`` in body ``i``'s frame;
 * the relative pose at ``q`` is ``C_{p,i}(q_i) = B_i exp(X_i q_i)``;
-* ``Joint.inertia``: the 6x6 mass-inertia matrix of body ``i`` in its own frame (see :mod:`jaxskid._lie`).
+* ``Joint.inertia``: the 6x6 mass-inertia matrix of body ``i`` in its own frame (see :mod:`jaxskid.model._lie`).
 
 Descriptions in the spatial representation are converted with :func:`spatial_to_body`. Fixed joints are
 merged into their parent body when the model is built (:meth:`Robot.create`); the merged link stays
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 import sympy as sp
 
 from . import _lie as lie
-from ._errors import ModelError
+from .._errors import ModelError
 
 JOINT_TYPES = ("revolute", "prismatic")
 _TOL = 1e-6

@@ -32,9 +32,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from . import _lie as lie
-from ._errors import ModelError
-from ._model import Joint, Robot, symbol
+from ..model import _lie as lie
+from .._errors import ModelError
+from ..model._robot import Joint, Robot, symbol
 
 _logger = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ gives inf or nan, as a singular pivot should.
 
 **One shape for the whole program.** A generated function broadcasts every input entry it reads to the
 shape of its output (``_spread``), so that XLA sees one elementwise program and compiles it into one
-kernel (see :mod:`jaxskid._lower`). Broadcast values would make reverse-mode differentiation carry a
+kernel (see :mod:`jaxskid.lowering._jax`). Broadcast values would make reverse-mode differentiation carry a
 cotangent per output entry through the whole program, so each function is a ``jax.custom_jvp`` whose
 derivative is that of the same program on unbroadcast values (``_plain_jvp``): gradients cost what they
 cost without the broadcast.

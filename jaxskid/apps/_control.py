@@ -13,8 +13,8 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from ._dynamics import Dynamics
-from ._errors import RequestError, ShapeError
+from ..runtime._dynamics import Dynamics
+from .._errors import RequestError, ShapeError
 from ._simulate import Controller, _param_array
 
 

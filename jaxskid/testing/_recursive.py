@@ -1,13 +1,13 @@
 """Numeric recursive dynamics in JAX: the "recursive evaluation" that the closed form is measured against.
 
-The closed form (:mod:`jaxskid._symbolic`) runs the Newton-Euler and composite-rigid-body recursions once,
+The closed form (:mod:`jaxskid.symbolic._kinematics`) runs the Newton-Euler and composite-rigid-body recursions once,
 symbolically, and prints the result. This module runs the same recursions numerically, at every call, in
 JAX: recursive Newton-Euler for ``tau``, ``C(q, qd) qd`` and ``Q_grav`` (Featherstone, "Rigid Body Dynamics
 Algorithms", 2008, Alg. 5.1) and the composite-rigid-body algorithm for ``M`` (Alg. 6.2), in the body-fixed
-representation of :mod:`jaxskid._model` (Müller 2018, sec. 3). The loop over the tree is unrolled in Python
+representation of :mod:`jaxskid.model._robot` (Müller 2018, sec. 3). The loop over the tree is unrolled in Python
 (the topology is static), so XLA sees straight-line code of 3x3 and 6x6 products.
 
-It is a lowering of the model, as :mod:`jaxskid._lower` is: the robot's joint origins, screws, 6x6
+It is a lowering of the model, as :mod:`jaxskid.lowering._jax` is: the robot's joint origins, screws, 6x6
 inertias and gravity are lambdified to JAX functions of the parameter vector (the order of
 ``Robot.parameters``, the same vector the closed form takes), so both evaluations take the same inputs.
 """
@@ -22,8 +22,8 @@ import jax.numpy as jnp
 import numpy as np
 import sympy as sp
 
-from ._errors import RequestError, ShapeError
-from ._model import Robot, symbol
+from .._errors import RequestError, ShapeError
+from ..model._robot import Robot, symbol
 
 _SIGNATURES = {
     "mass_matrix": ("q",),

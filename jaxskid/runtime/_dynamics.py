@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import RequestError, ShapeError
+from .._errors import RequestError, ShapeError
 
 
 def compiler_options() -> dict:
@@ -106,7 +106,7 @@ class Dynamics:
         """The generated function for one state, ``f(*state, p)`` with ``p`` a parameter vector.
 
         ``batched=True`` gives the form to map with ``jax.vmap`` (its inputs are broadcast to the output's
-        shape so that XLA makes one kernel of a batch; see :mod:`jaxskid._lower`); ``batched=False`` the
+        shape so that XLA makes one kernel of a batch; see :mod:`jaxskid.lowering._jax`); ``batched=False`` the
         same program on unbroadcast values, for a single state (XLA makes nothing better of the broadcast
         there, and on the closed-form forward dynamics its simplifier loops over it).
         """
@@ -147,7 +147,7 @@ class Dynamics:
             if fn is None:
                 fn = self._jitted[name] = self._make(name)
             return fn
-        from ._equations import QUANTITIES
+        from ..equations._derive import QUANTITIES
 
         if name in QUANTITIES:
             raise RequestError(
@@ -235,7 +235,7 @@ class Dynamics:
         ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``) with a
         Cholesky-type solve; see :func:`jaxskid.forward_dynamics`.
         """
-        from ._simulate import forward_dynamics
+        from ..apps._simulate import forward_dynamics
 
         return forward_dynamics(self, q, qd, tau, params, wrench)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import re
 
-from ._errors import RequestError
+from .._errors import RequestError
 
 FORMATS = ("yaml", "json", "py")
 _STRUCTURE = re.compile(r"[RrPp]{1,64}")

@@ -17,7 +17,7 @@ def double(x: float) -> str:
 
 
 class NumberTweaks:
-    """Printer mixin shared by every target (the tweaks :mod:`jaxskid._lower` makes for JAX).
+    """Printer mixin shared by every target (the tweaks :mod:`jaxskid.lowering._jax` makes for JAX).
 
     Floats, rationals and integers print as round-trip double literals, pi and e as numbers (C99 has no
     ``M_PI``), small integer powers as products (``x*x``, ``1.0/(x*x)``) rather than a general ``pow``, and

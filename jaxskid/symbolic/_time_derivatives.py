@@ -41,9 +41,9 @@ from math import comb, factorial
 
 import sympy as sp
 
-from . import _lie as lie
-from ._equations import QuantitySpec, _flat, hybridize, register
-from ._symbolic import Kinematics, Vec, ad_apply, add, coad_apply, cross, dot, inertia_apply, matvec, scale
+from ..model import _lie as lie
+from ..equations._derive import QuantitySpec, _flat, hybridize, register
+from ._kinematics import Kinematics, Vec, ad_apply, add, coad_apply, cross, dot, inertia_apply, matvec, scale
 
 MAX_ORDER = 3
 """Highest derivative of a relative transform used (``P_3`` holds q3d; tau's second derivative needs it)."""

@@ -28,11 +28,11 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from . import _lie as lie
-from ._equations import QuantitySpec, register
-from ._errors import ModelError, ShapeError
-from ._model import Robot, symbol
-from ._symbolic import Kinematics, Vec, coad_apply, cross, dot
+from ..model import _lie as lie
+from ..equations._derive import QuantitySpec, register
+from .._errors import ModelError, ShapeError
+from ..model._robot import Robot, symbol
+from ._kinematics import Kinematics, Vec, coad_apply, cross, dot
 
 N_STANDARD = len(lie.STANDARD_PARAMETER_NAMES)  # 10 parameters per body
 

@@ -63,9 +63,9 @@ import yaml
 from sympy.core.function import AppliedUndef
 from sympy.printing.str import StrPrinter
 
-from . import _lie as lie
-from ._errors import ModelError
-from ._model import Frame, Joint, Robot, spatial_to_body, symbol, to_expr
+from ..model import _lie as lie
+from .._errors import ModelError
+from ..model._robot import Frame, Joint, Robot, spatial_to_body, symbol, to_expr
 
 _SKIDY_KEYS = (
     "joint_screw_coord", "body_ref_config", "representation", "ee", "ee_parent", "mass_inertia", "parent",

@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ._errors import RequestError
-from ._model import Robot
-from ._symbolic import Kinematics, Tape
+from .._errors import RequestError
+from ..model._robot import Robot
+from ..symbolic._kinematics import Kinematics, Tape
 
 log = logging.getLogger("jaxskid")
 

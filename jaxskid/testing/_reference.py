@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from ._equations import Equations
+from ..equations._derive import Equations
 
 
 @dataclass(frozen=True)

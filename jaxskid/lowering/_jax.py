@@ -13,7 +13,7 @@ Output form. How the result array is assembled decides how fast XLA on CPU runs 
   against an index held in memory, n^2 selects for n entries (260 ns);
 - nested chains, one per axis, on ``lax.broadcasted_iota`` of that axis: the innermost index is a loop
   constant after unrolling, so those selects fold away, and the outer chains select whole rows (160 ns;
-  66 ns with the fusible sine and cosine of :mod:`jaxskid._helpers_source`);
+  66 ns with the fusible sine and cosine of :mod:`jaxskid.lowering._helpers_source`);
 - the same, with every input entry first broadcast to the output's shape (what is generated): every
   operation is then elementwise on one shape, so XLA's estimate of how often a shared value would be
   recomputed stays low and the whole function is one kernel (mass matrix 57 ns; Coriolis matrix 570
@@ -36,9 +36,9 @@ import sympy as sp
 from sympy.printing.numpy import JaxPrinter
 from sympy.printing.precedence import PRECEDENCE
 
-from ._equations import Equations, Options, derive, resolve
+from ..equations._derive import Equations, Options, derive, resolve
 from ._helpers_source import SOURCE as HELPERS_SOURCE
-from ._model import Robot
+from ..model._robot import Robot
 from ._printing import NumberTweaks
 
 log = logging.getLogger("jaxskid")
@@ -131,7 +131,7 @@ def function_source(eqs: Equations, name: str, printer: _Printer | None = None) 
     """Source of one quantity: ``_name(*args, p, spread)``, the program (``spread`` broadcasts each input
     entry to the output's shape, or is the identity), and ``name(*args, p)``, the ``jax.custom_jvp``
     that runs it broadcast and differentiates it unbroadcast (see the module docstring and
-    :mod:`jaxskid._helpers_source`)."""
+    :mod:`jaxskid.lowering._helpers_source`)."""
     printer = printer or _Printer()
     qty = eqs.quantities[name]
     prog = eqs.program([name])
