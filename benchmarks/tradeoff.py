@@ -125,7 +125,7 @@ def derive_setting(job: dict) -> dict:
     """In a fresh process, under the time limit: derive + print one closed-form setting into the cache."""
     _setup_jax()
     import jaxskid
-    from jaxskid import _reference
+    from jaxskid.testing import _reference
 
     robot = load_robot(job["robot"])
     options = jaxskid.Options(**job["setting"].options)
@@ -177,7 +177,7 @@ def references(key: str, states: dict):
     import pinocchio as pin
 
     import jaxskid
-    from jaxskid import _reference
+    from jaxskid.testing import _reference
 
     robot = load_robot(key)
     params = np.array([robot.default_params()[k] for k in robot.parameters])

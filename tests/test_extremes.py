@@ -29,7 +29,7 @@ import sympy as sp
 
 import jaxskid
 from jaxskid import Joint, Robot
-from jaxskid import _reference as ref_
+from jaxskid.testing import _reference as ref_
 
 QUANTITIES = ("mass_matrix", "gravity_torques", "coriolis_torques", "inverse_dynamics")
 ARGS = {"mass_matrix": ("q",), "gravity_torques": ("q",), "coriolis_torques": ("q", "qd"),

@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 
 import jaxskid
 from jaxskid import Frame, Joint, Robot
-from jaxskid import _reference as ref_
+from jaxskid.testing import _reference as ref_
 from jaxskid.testing._recursive import recursive_dynamics
 from pinref import to_pinocchio
 
