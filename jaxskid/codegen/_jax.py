@@ -155,7 +155,7 @@ def module_source(layout: Layout) -> str:
         "import jax",
         "import jax.numpy as jnp",
         KERNELS_SOURCE,
-        f"METADATA = {json.dumps(layout.metadata(), sort_keys=True)}",
+        f"METADATA = {json.dumps(layout.metadata())}",  # in order: the quantities as the catalogue lists them
         "",
     ]
     printer = JaxPrinter()
