@@ -113,7 +113,7 @@ def _requested(eqs: Equations, names: Sequence[str] | str | None) -> tuple[str, 
 
 
 def generate(
-    eqs: Equations,
+    eqs: Equations | Layout,
     target: str,
     out_dir: str | os.PathLike,
     *,
@@ -123,7 +123,7 @@ def generate(
     """Write the code of ``target`` for the quantities ``names`` (default: all of ``eqs``) to ``out_dir``.
 
     Args:
-        eqs: the derived equations (:func:`jaxskid.derive`).
+        eqs: the derived equations (:func:`jaxskid.derive`), or a :class:`Layout` of them (see :func:`emit`).
         target: one of :data:`TARGETS` (``"c"``, ``"cpp"``, ``"python"``, ...).
         out_dir: the folder to write to; created if missing.
         names: the quantities to generate, a subset of ``eqs.quantities``.

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import sympy as sp
-from sympy.printing.precedence import PRECEDENCE
 
 from ..equations._derive import Equations
 from ._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
