@@ -36,7 +36,9 @@ import sympy as sp  # noqa: E402
 
 import jaxskid  # noqa: E402
 from jaxskid.equations._derive import Equations, Options, Quantity  # noqa: E402
-from jaxskid.lowering._jax import _load_source, module_source  # noqa: E402
+from jaxskid.codegen import Layout  # noqa: E402
+from jaxskid.codegen._jax import jax_names, module_source  # noqa: E402
+from jaxskid.lowering._cache import load_module  # noqa: E402
 from jaxskid.symbolic._kinematics import Tape  # noqa: E402
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
@@ -125,7 +127,7 @@ def skidy_style(robot, timeout: float) -> list[tuple[str, float, int]]:
 def compile_set(robot, eqs: Equations, names: list[str], batch: int, options: dict | None):
     """Lower (print + exec) and compile the named quantities, batched; returns the timings and callables."""
     t = time.perf_counter()
-    ns = _load_source(module_source(eqs, names, "benchmark"), "<benchmark>")
+    ns = load_module(module_source(Layout(eqs, tuple(names), jax_names)), "<benchmark>")
     lower_s = time.perf_counter() - t
     n, n_ee = robot.n_dof, len(robot.end_effectors)
     rng = np.random.default_rng(0)

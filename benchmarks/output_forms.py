@@ -13,7 +13,7 @@ it, and timed interleaved (medians per state). Forms:
   generates).
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
-:mod:`jaxskid.lowering._helpers_source` (what jaxskid generates). Pinocchio's ``crba`` (or ``rnea``) per call from
+:mod:`jaxskid._kernels` (what jaxskid generates). Pinocchio's ``crba`` (or ``rnea``) per call from
 Python is printed beside them (``computeCoriolisMatrix``, ``aba`` for the other quantities). For
 ``forward_dynamics`` the pivots' reciprocals are also timed as plain divisions (``/ division``).
 """
@@ -33,12 +33,12 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
-import sympy as sp  # noqa: E402
 
 import jaxskid  # noqa: E402
 from jaxskid.runtime._dynamics import compiler_options  # noqa: E402
-from jaxskid.lowering._jax import _Printer, function_source  # noqa: E402
-from jaxskid.lowering._helpers_source import SOURCE as HELPERS  # noqa: E402
+from jaxskid._kernels import SOURCE as HELPERS  # noqa: E402
+from jaxskid.codegen import Layout  # noqa: E402
+from jaxskid.codegen._jax import JaxPrinter, function_source, jax_names  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
@@ -49,13 +49,14 @@ LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 def variants(eqs, name: str) -> dict[str, tuple[str, bool, bool]]:
     """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, whether to spread, and
     whether reciprocals are divisions instead of Newton's iteration."""
-    generated = function_source(eqs, name)
+    layout = Layout(eqs, (name,), jax_names)
+    (kernel,) = layout.kernels
+    generated = function_source(layout, kernel, JaxPrinter())
     body = generated[: generated.index("\n\n\n@jax.custom_jvp")] + "\n"
     head = body[: body.index("    _z = jnp.zeros(")]
     qty = eqs.quantities[name]
-    printer = _Printer()
-    rename = {s: sp.Symbol(f"_p{k}", real=True) for k, s in enumerate(eqs.param_symbols)}
-    outs = [printer.doprint(sp.sympify(e).xreplace(rename)) for e in qty.outputs]
+    printer = JaxPrinter()
+    outs = [printer.doprint(e) for e in kernel.outputs]
     dtype = f"jnp.result_type({qty.args[0]}, p)"
     size, shape = len(outs), tuple(qty.shape)
     flat = [f"    _out = jnp.zeros(({size},), {dtype})", f"    _i = jnp.arange({size})"]

@@ -7,10 +7,11 @@ from .equations._derive import DEFAULT_QUANTITIES, QUANTITIES, Equations, Option
 from .symbolic import _time_derivatives as _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
 from .symbolic import _forward  # noqa: F401  (registers the closed-form forward dynamics)
 from .symbolic._regressor import params_from_standard, standard_parameter_names, standard_params
-from .lowering._jax import cache_dir
+from .lowering._cache import cache_dir
 from .runtime._dynamics import Dynamics, compiler_options, jit
-from ._api import load, lower
-from .runtime._native import BuildError, NativeDynamics, compile_native
+from ._api import compile_native, load, lower
+from .lowering._native import BuildError
+from .runtime._native import NativeDynamics
 from . import codegen
 from .description._urdf import read_urdf
 from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, forward_dynamics, mass_matrix_condition, rollout

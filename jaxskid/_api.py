@@ -1,4 +1,5 @@
-"""The two entry points: :func:`load` a description, :func:`lower` it to JAX functions."""
+"""The entry points, across the stages: :func:`load` a description, :func:`lower` it to JAX functions,
+:func:`compile_native` it to C called from Python."""
 
 from __future__ import annotations
 
@@ -6,11 +7,17 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from .runtime._dynamics import Dynamics
-from .equations._derive import Options
-from ._errors import ModelError
-from .lowering._jax import generate_module
+from ._errors import ModelError, RequestError
+from .codegen import Layout
+from .codegen._c import emit_c
+from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
+from .equations._derive import QUANTITIES, Equations, Options, derive, resolve
+from .lowering._cache import cache_dir as default_cache_dir
+from .lowering._cache import entry_path, read_entry, request_key, store_entry
+from .lowering._native import build, default_backend
 from .model._robot import Robot
+from .runtime._dynamics import Dynamics
+from .runtime._native import NativeDynamics
 
 
 def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **options) -> Robot:
@@ -35,7 +42,7 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **
 
 
 def lower(
-    robot: Robot,
+    model: Robot | Equations,
     quantities: Sequence[str] | str | None = None,
     *,
     symbolic: Iterable[str] | None = None,
@@ -44,30 +51,101 @@ def lower(
     options: Options | None = None,
     progress: bool = False,
 ) -> Dynamics:
-    """Derive, lower and wrap the requested quantities of ``robot`` (only those).
+    """Derive, lower and wrap the requested quantities of ``model`` (only those).
+
+    The generated module is cached on disk, keyed by everything that determines it (the robot, the
+    quantities, the options, the default parameters and the generator's version): a second call with the
+    same request derives nothing.
 
     Args:
-        robot: the model.
-        quantities: names from :data:`jaxskid.QUANTITIES`; ``None`` for :data:`jaxskid.DEFAULT_QUANTITIES`,
-            ``"all"`` for every quantity.
+        model: a :class:`Robot`, or :class:`Equations` already derived (they are printed as they are; the
+            cache is shared with the robot's request).
+        quantities: names from :data:`jaxskid.QUANTITIES`; ``None`` for :data:`jaxskid.DEFAULT_QUANTITIES`
+            (for ``Equations``: every quantity they hold), ``"all"`` for every quantity.
         symbolic: the parameters that stay inputs of the generated functions; every other parameter is
             replaced by its default value (the ``assignments``). ``None`` keeps all parameters symbolic.
+            Only for a robot: substitute before deriving for ``Equations``.
         cache: reuse and write generated modules in ``cache_dir`` (default :func:`jaxskid.cache_dir`).
-        options: how expressions are formed (:class:`jaxskid.Options`: CSE, simplification, trig).
+        options: how expressions are formed (:class:`jaxskid.Options`: CSE, simplification, trig); for
+            ``Equations``, the options they were derived with.
         progress: show a progress bar while deriving.
     """
-    if symbolic is not None:
-        keep = set(symbolic)
-        unknown = keep - set(robot.parameters)
-        if unknown:
-            raise ModelError(
-                f"unknown parameter(s) {', '.join(sorted(unknown))}; parameters are {', '.join(robot.parameters)}",
-                where="symbolic",
-            )
-        fixed = [p for p in robot.parameters if p not in keep]
-        if fixed:
-            robot = robot.substitute(fixed)
-    ns, source, path = generate_module(
-        robot, quantities, cache=cache, directory=cache_dir, options=options, progress=progress
-    )
-    return Dynamics(ns, source, path)
+    if isinstance(model, Equations):
+        if symbolic is not None:
+            raise RequestError("lower: symbolic= needs a Robot; for Equations, derive from robot.substitute(...)")
+        if options is not None and options != model.options:
+            raise RequestError(f"lower: options {options} differ from the equations' {model.options}")
+        robot, names, options = model.robot, _derived(model, quantities), model.options
+    else:
+        robot = _keep_symbolic(model, symbolic)
+        names, options = resolve(robot, quantities), options or Options()
+    key = request_key([GENERATOR_VERSION, robot.fingerprint(), repr(names), repr(options),
+                       repr(sorted(robot.default_params().items()))])  # the module's METADATA holds the defaults
+    path = entry_path(cache_dir, robot.name, key) if cache else None
+    found = read_entry(path, key) if path is not None else None
+    if found is None:
+        eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
+        found = store_entry(path, module_source(Layout(eqs, names, jax_names)), key)
+    namespace, source = found
+    return Dynamics(namespace, source, path)
+
+
+def compile_native(
+    model: Robot | Equations,
+    quantities: Sequence[str] | str | None = None,
+    *,
+    backend: str | None = None,
+    cache_dir: str | os.PathLike | None = None,
+) -> NativeDynamics:
+    """Compile the requested quantities of ``model`` to native code for fast single calls: derive, print
+    the ``"c"`` target of :mod:`jaxskid.codegen`, build it (:mod:`jaxskid.lowering._native`) and wrap it
+    in a :class:`NativeDynamics`.
+
+    Args:
+        model: a :class:`Robot` (its quantities are derived here) or already derived :class:`Equations`.
+        quantities: names from :data:`jaxskid.QUANTITIES`; ``None`` for the defaults (for ``Equations``:
+            every quantity they hold).
+        backend: ``"cffi"`` or ``"ctypes"``; ``None`` picks cffi when it is installed.
+        cache_dir: where built libraries are kept (default ``jaxskid.cache_dir() / "native"``).
+
+    Raises:
+        BuildError: no C compiler, or the build failed (the message ends with the compiler's output).
+    """
+    if isinstance(model, Equations):
+        eqs, names = model, _derived(model, quantities)
+    else:
+        names = resolve(model, quantities)
+        eqs = derive(model, names)
+    layout = Layout(eqs, names)
+    files = emit_c(layout)
+    header, source = files[f"{layout.stem}.h"], files[f"{layout.stem}.c"]
+    symbols = {n: f"{layout.stem}_{n}" for n in names}
+    arity = {symbols[k.name]: len(k.args) + 2 for k in layout.kernels}  # the state arguments, p and out
+    root = Path(cache_dir) if cache_dir is not None else default_cache_dir() / "native"
+    library = build(layout.stem, header, source, arity, backend or default_backend(), root)
+    return NativeDynamics(layout.metadata(), {n: library.functions[c] for n, c in symbols.items()},
+                          ffi=library.ffi, path=library.path, source=source, catalogue=tuple(QUANTITIES))
+
+
+def _keep_symbolic(robot: Robot, symbolic: Iterable[str] | None) -> Robot:
+    """``robot`` with every parameter outside ``symbolic`` replaced by its default (None: all stay)."""
+    if symbolic is None:
+        return robot
+    keep = set(symbolic)
+    unknown = keep - set(robot.parameters)
+    if unknown:
+        raise ModelError(
+            f"unknown parameter(s) {', '.join(sorted(unknown))}; parameters are {', '.join(robot.parameters)}",
+            where="symbolic",
+        )
+    fixed = [p for p in robot.parameters if p not in keep]
+    return robot.substitute(fixed) if fixed else robot
+
+
+def _derived(eqs: Equations, quantities: Sequence[str] | str | None) -> tuple[str, ...]:
+    """The requested quantities of already derived equations (``None``: all they hold), in canonical order."""
+    names = tuple(eqs.quantities) if quantities is None else resolve(eqs.robot, quantities)
+    missing = [n for n in names if n not in eqs.quantities]
+    if missing:
+        raise RequestError(f"{', '.join(missing)} not derived; derived: {', '.join(eqs.quantities)}")
+    return names

@@ -8,8 +8,10 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import jaxskid
+from jaxskid.lowering._cache import seal
 
 ROBOT = Path(__file__).parents[1] / "robots" / "double_pendulum.yaml"
 
@@ -57,3 +59,33 @@ def test_two_processes_writing_the_same_entry(tmp_path):
     robot = jaxskid.load(ROBOT)
     reread = jaxskid.lower(robot, ["inverse_dynamics"], cache_dir=tmp_path)
     assert reread.path == entries[0]
+
+
+def test_lowering_derived_equations_shares_the_robots_entry(tmp_path):
+    robot = jaxskid.load(ROBOT)
+    eqs = jaxskid.derive(robot, ["mass_matrix", "gravity_torques"])
+    from_eqs = jaxskid.lower(eqs, cache_dir=tmp_path)  # printed from the equations, nothing derived again
+    assert from_eqs.quantities == ("mass_matrix", "gravity_torques")
+    from_robot = jaxskid.lower(robot, ["gravity_torques", "mass_matrix"], cache_dir=tmp_path)
+    assert from_robot.path == from_eqs.path and from_robot.source == from_eqs.source
+    subset = jaxskid.lower(eqs, "gravity_torques", cache_dir=tmp_path)
+    q = np.array([0.3, -0.4])
+    np.testing.assert_allclose(np.asarray(subset.gravity_torques(q)), np.asarray(from_robot.gravity_torques(q)),
+                               rtol=1e-14)
+    for bad, match in (({"quantities": ["coriolis_matrix"]}, "not derived"), ({"symbolic": ["m1"]}, "needs a Robot"),
+                       ({"options": jaxskid.Options(cse="sympy")}, "differ")):
+        with pytest.raises(jaxskid.RequestError, match=match):
+            jaxskid.lower(eqs, **bad)
+
+
+def test_entry_of_another_request_is_not_used(tmp_path):
+    """An intact entry whose key is not the request's (same short file name) is regenerated, not run."""
+    robot = jaxskid.load(ROBOT)
+    dyn = jaxskid.lower(robot, ["mass_matrix"], cache_dir=tmp_path)
+    text = dyn.path.read_text()
+    module, _, _ = text.partition("# jaxskid-key: ")
+    dyn.path.write_text(seal(module.replace("def mass_matrix(", "def mass_matrix_stale("), "0" * 64))
+    again = jaxskid.lower(robot, ["mass_matrix"], cache_dir=tmp_path)
+    assert again.path.read_text() == text
+    np.testing.assert_allclose(np.asarray(again.mass_matrix(np.array([0.3, -0.4]))),
+                               np.asarray(dyn.mass_matrix(np.array([0.3, -0.4]))), rtol=1e-14)

@@ -13,6 +13,10 @@ One entry point, :func:`generate`, and one emitter per target (:data:`TARGETS`):
 ``latex``  ``<stem>.tex``: the equations as a document
 =========  ======================================================================
 
+Every target prints the same program representation (:class:`Layout`, :class:`Kernel`: the pruned
+straight-line program of each quantity) with its own printer; the number rules are shared
+(:mod:`jaxskid.codegen._printing`).
+
 ``<stem>`` is the robot's name made an identifier (:func:`stem`). Every generated function takes the
 symbolic parameters as its last input ``p`` (in the order of ``Equations.parameters``) with the robot's
 ``assignments`` as defaults, prints the quantity's straight-line program so that common subexpressions
@@ -23,6 +27,9 @@ Example::
 
     eqs = jaxskid.derive(robot, ["mass_matrix", "inverse_dynamics"])
     paths = jaxskid.codegen.generate(eqs, "c", "generated/arm")
+
+Several targets of one request can share the renamed programs: pass the same :class:`Layout`
+(``layout = Layout(eqs, names)``) to :func:`emit` for each target.
 """
 
 from __future__ import annotations
@@ -32,30 +39,33 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..equations._derive import Equations
 from .._errors import RequestError
+from ..equations._derive import Equations
 from ._c import emit_c, emit_cpp
-from ._common import Kernel, Layout, stem
+from ._common import Kernel, Layout, portable_names, stem
 from ._cython import emit_cython
+from ._jax import emit_jax, jax_names
 from ._julia import emit_julia
 from ._latex import emit_latex
 from ._matlab import emit_matlab
-from ._python import emit_jax, emit_numpy
+from ._python import emit_numpy
 
 
 @dataclass(frozen=True)
 class Target:
-    """A code generation target: its name, a description and its emitter ``Layout -> {file name: text}``."""
+    """A code generation target: its name, a description, its emitter ``Layout -> {file name: text}``
+    and the renaming of symbols its layout uses (:attr:`Layout.naming`)."""
 
     name: str
     description: str
     emit: Callable[[Layout], dict[str, str]]
+    naming: Callable[[Equations], dict] = portable_names
 
 
 TARGETS: dict[str, Target] = {
     t.name: t
     for t in (
-        Target("jax", "JAX module, as jaxskid.lower generates it", emit_jax),
+        Target("jax", "JAX module, as jaxskid.lower generates it", emit_jax, jax_names),
         Target("python", "Python module using NumPy", emit_numpy),
         Target("c", "C99 source and header", emit_c),
         Target("cpp", "C++ source and header", emit_cpp),
@@ -68,14 +78,30 @@ TARGETS: dict[str, Target] = {
 """Every target :func:`generate` knows, by name."""
 
 
-def emit(eqs: Equations, target: str, names: Sequence[str] | None = None) -> dict[str, str]:
+def emit(eqs: Equations | Layout, target: str, names: Sequence[str] | None = None) -> dict[str, str]:
     """The files of ``target`` for the quantities ``names`` (default: all of ``eqs``), as
-    ``{file name: text}``, without writing anything. Quantities appear in the order of ``eqs.quantities``."""
+    ``{file name: text}``, without writing anything. Quantities appear in the order of ``eqs.quantities``.
+
+    ``eqs`` may be a :class:`Layout` (then ``names`` must be None): its renamed programs serve every
+    target that uses its naming, so emitting several targets of one request renames them once.
+    """
     if target not in TARGETS:
         raise RequestError(f"unknown target {target!r}; targets are {', '.join(TARGETS)}")
+    naming = TARGETS[target].naming
+    if isinstance(eqs, Layout):
+        if names is not None:
+            raise RequestError("emit: pass the quantity names in the Layout, not beside it")
+        layout = eqs if eqs.naming is naming else Layout(eqs.eqs, eqs.names, naming)
+    else:
+        layout = Layout(eqs, _requested(eqs, names), naming)
+    return TARGETS[target].emit(layout)
+
+
+def _requested(eqs: Equations, names: Sequence[str] | str | None) -> tuple[str, ...]:
+    """``names`` checked against what ``eqs`` holds, in the order of ``eqs.quantities``."""
     if names is None:
-        names = tuple(eqs.quantities)
-    elif isinstance(names, str):
+        return tuple(eqs.quantities)
+    if isinstance(names, str):
         names = (names,)
     missing = [n for n in names if n not in eqs.quantities]
     if missing:
@@ -83,24 +109,11 @@ def emit(eqs: Equations, target: str, names: Sequence[str] | None = None) -> dic
             f"quantity {', '.join(map(repr, missing))} was not derived; derived: {', '.join(eqs.quantities)}"
         )
     wanted = set(names)
-    return TARGETS[target].emit(_layout(eqs, tuple(n for n in eqs.quantities if n in wanted)))
-
-
-_last_layout: list = []
-
-
-def _layout(eqs: Equations, names: tuple[str, ...]) -> Layout:
-    """The layout of a request; the last one is kept, so that emitting several targets of the same
-    equations renames their programs once."""
-    if _last_layout and _last_layout[0].eqs is eqs and _last_layout[0].names == names:
-        return _last_layout[0]
-    layout = Layout(eqs, names)
-    _last_layout[:] = [layout]
-    return layout
+    return tuple(n for n in eqs.quantities if n in wanted)
 
 
 def generate(
-    eqs: Equations,
+    eqs: Equations | Layout,
     target: str,
     out_dir: str | os.PathLike,
     *,
@@ -110,7 +123,7 @@ def generate(
     """Write the code of ``target`` for the quantities ``names`` (default: all of ``eqs``) to ``out_dir``.
 
     Args:
-        eqs: the derived equations (:func:`jaxskid.derive`).
+        eqs: the derived equations (:func:`jaxskid.derive`), or a :class:`Layout` of them (see :func:`emit`).
         target: one of :data:`TARGETS` (``"c"``, ``"cpp"``, ``"python"``, ...).
         out_dir: the folder to write to; created if missing.
         names: the quantities to generate, a subset of ``eqs.quantities``.

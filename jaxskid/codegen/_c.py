@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
-from ._common import Kernel, Layout, NumberTweaks, comment, double, shape_str
+from ._common import Kernel, Layout, NumberTweaks, comment, double, shape_str, statements
 
 
 class CPrinter(NumberTweaks, C99CodePrinter):
@@ -33,10 +33,7 @@ class CxxPrinter(NumberTweaks, CXX11CodePrinter):
 def body_lines(k: Kernel, printer, *, decl: str, indent: str = "    ", out: str = "out[{k}]") -> list[str]:
     """The statements of a C-like function body: read the inputs, assign, write the outputs."""
     lines = [f"{indent}(void){a};" for a in k.unused]
-    for s, a, i in k.inputs:
-        lines.append(f"{indent}{decl} {s.name} = {a}[{i}];")
-    for s, e in k.body:
-        lines.append(f"{indent}{decl} {s.name} = {printer.doprint(e)};")
+    lines += statements(k, printer, lambda a, i: f"{a}[{i}]", f"{indent}{decl} {{}} = {{}};")
     for i, e in enumerate(k.outputs):
         lines.append(f"{indent}{out.format(k=i)} = {printer.doprint(e)};")
     return lines

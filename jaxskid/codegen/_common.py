@@ -1,26 +1,29 @@
-"""What every emitter shares: the renamed straight-line program of each quantity, the file header, and
-the printer tweaks.
+"""The one program representation every target prints, and what the emitters share.
 
-Each generated function is the program of one quantity (``Equations.program([name])``), printed as one
-assignment per line, so common subexpressions stay shared exactly as the derivation named them. Symbols
-are renamed to names that are valid in every target language: the inputs ``q_0``, ``qd_3``, ... (flat,
-0-based), the parameters ``p_0``, ``p_1``, ... (in the order of ``Equations.parameters``) and the
-intermediates ``x0``, ``x1``, ....
+Each generated function is the program of one quantity (``Equations.program([name])``), pruned to the
+assignments it needs and to the input entries it reads (:class:`Kernel`), printed as one assignment per
+line, so common subexpressions stay shared exactly as the derivation named them. A :class:`Layout` is a
+request (equations and quantity names) with the kernels of its quantities, the header every file starts
+with and the metadata the runtime reads.
+
+Symbols are renamed by the layout's ``naming``. :func:`portable_names` gives names that are valid in every
+target language: the inputs ``q_0``, ``qd_3``, ... (flat, 0-based), the parameters ``p_0``, ``p_1``, ...
+(in the order of ``Equations.parameters``) and the intermediates ``x0``, ``x1``, .... The JAX target keeps
+the derivation's own names (:func:`jaxskid.codegen._jax.jax_names`).
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
 import sympy as sp
-from sympy.printing.precedence import PRECEDENCE
 
 from ..equations._derive import Equations
-from ..lowering._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
+from ._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
 
 # Words that cannot be a module, namespace or function name in one of the target languages.
 _RESERVED = frozenset(
@@ -69,12 +72,28 @@ class Kernel:
         return tuple(a for a in (*self.args, "p") if a not in used)
 
 
+def portable_names(eqs: Equations) -> dict:
+    """Symbol -> a name valid in every target language: ``q_0``, ``p_0``, ``x0`` (module docstring)."""
+    ren: dict = {}
+    for a, arg in eqs.arguments.items():
+        for k, s in enumerate(arg.symbols):
+            ren[s] = sp.Symbol(f"{a}_{k}", real=True)
+    for k, s in enumerate(eqs.param_symbols):
+        ren[s] = sp.Symbol(f"p_{k}", real=True)
+    for k, (s, _) in enumerate(eqs.assignments):
+        ren[s] = sp.Symbol(f"x{k}", real=True)
+    return ren
+
+
 @dataclass(frozen=True)
 class Layout:
-    """Everything a header documents: the robot, its arguments, parameters and defaults."""
+    """A request as the emitters see it: the robot, its arguments, parameters and defaults, and the
+    kernels of the quantities ``names`` with their symbols renamed by ``naming`` (a function
+    ``Equations -> {symbol: new symbol}``; a symbol it leaves out keeps its name)."""
 
     eqs: Equations
     names: tuple[str, ...]
+    naming: Callable[[Equations], dict] = portable_names
 
     @property
     def robot(self):
@@ -111,20 +130,26 @@ class Layout:
 
     @cached_property
     def kernels(self) -> tuple[Kernel, ...]:
-        return tuple(kernel(self.eqs, n, self._rename) for n in self.names)
+        rename = self.naming(self.eqs)
+        return tuple(kernel(self.eqs, n, rename) for n in self.names)
 
-    @cached_property
-    def _rename(self) -> dict:
-        eqs = self.eqs
-        ren: dict = {}
-        for a, arg in eqs.arguments.items():
-            for k, s in enumerate(arg.symbols):
-                ren[s] = sp.Symbol(f"{a}_{k}", real=True)
-        for k, s in enumerate(eqs.param_symbols):
-            ren[s] = sp.Symbol(f"p_{k}", real=True)
-        for k, (s, _) in enumerate(eqs.assignments):
-            ren[s] = sp.Symbol(f"x{k}", real=True)
-        return ren
+    def metadata(self) -> dict:
+        """What the runtime needs to call the generated functions, as plain JSON data: ``robot``,
+        ``joint_names``, ``frame_names``, ``end_effectors``, ``parameters`` (the order of ``p``),
+        ``defaults`` (name -> value, for the parameters that have one) and ``quantities`` (name ->
+        ``args``, ``shape``, ``equation``, ``doc``)."""
+        r = self.robot
+        quantities = {n: self.eqs.quantities[n] for n in self.names}
+        return {
+            "robot": r.name,
+            "joint_names": list(r.joint_names),
+            "frame_names": list(r.frame_names),
+            "end_effectors": list(r.end_effectors),
+            "parameters": list(self.parameters),
+            "defaults": r.default_params(),
+            "quantities": {n: {"args": list(q.args), "shape": list(q.shape), "equation": q.equation, "doc": q.doc}
+                           for n, q in quantities.items()},
+        }
 
     def header(self, target: str, calling: Sequence[str], *, base: int = 0) -> list[str]:
         """The header every generated file starts with (without comment markers).
@@ -170,14 +195,14 @@ class Layout:
 
 
 def kernel(eqs: Equations, name: str, rename: dict) -> Kernel:
-    """The renamed program of one quantity (see the module docstring)."""
+    """The program of one quantity, pruned and renamed (see the module docstring)."""
     qty = eqs.quantities[name]
     prog = eqs.program([name])
     used: set = set()
     body = []
     for s, e in prog:
         used |= e.free_symbols
-        body.append((rename[s], e.xreplace(rename)))
+        body.append((rename.get(s, s), e.xreplace(rename)))
     outputs = []
     for e in qty.outputs:
         e = sp.sympify(e)
@@ -187,12 +212,21 @@ def kernel(eqs: Equations, name: str, rename: dict) -> Kernel:
     for a in qty.args:
         for k, s in enumerate(eqs.arguments[a].symbols):
             if s in used:
-                inputs.append((rename[s], a, k))
+                inputs.append((rename.get(s, s), a, k))
     for k, s in enumerate(eqs.param_symbols):
         if s in used:
-            inputs.append((rename[s], "p", k))
+            inputs.append((rename.get(s, s), "p", k))
     return Kernel(name, tuple(qty.args), tuple(qty.shape), qty.equation, qty.doc, tuple(inputs), tuple(body),
                   tuple(outputs))
+
+
+def statements(k: Kernel, printer, read: Callable[[str, int], str], assign: str = "{} = {}") -> list[str]:
+    """The straight-line body of a generated function, one line per input entry it reads and per
+    assignment: ``assign.format(name, value)``, where an input's value is ``read(argument, flat index)``
+    and an assignment's is the printed expression."""
+    lines = [assign.format(s.name, read(a, i)) for s, a, i in k.inputs]
+    lines += [assign.format(s.name, printer.doprint(e)) for s, e in k.body]
+    return lines
 
 
 def _shape_str(shape: Sequence[int]) -> str:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 
 from ._c import CPrinter
-from ._common import Layout, comment, double, shape_str
+from ._common import Layout, comment, double, shape_str, statements
 
 # libc.math functions the C printer may emit.
 _LIBC_MATH = frozenset(
@@ -46,10 +46,7 @@ def emit_cython(layout: Layout) -> dict[str, str]:
             lines.append(f"    cdef list _{a} = _flat({a}, {layout.arg_shape(a)!r}, {f'{k.name}: {a}'!r})")
         lines.append(f"    cdef list _p = _flat(DEFAULT_PARAMS if p is None else p, {layout.arg_shape('p')!r}, "
                      f"{f'{k.name}: p'!r})")
-        for sym, a, i in k.inputs:
-            lines.append(f"    cdef double {sym.name} = _{a}[{i}]")
-        for sym, e in k.body:
-            lines.append(f"    cdef double {sym.name} = {printer.doprint(e)}")
+        lines += statements(k, printer, lambda a, i: f"_{a}[{i}]", "    cdef double {} = {}")
         lines.append("    return numpy.array([")
         lines += [f"        {printer.doprint(e) if e != 0 else '0.0'}," for e in k.outputs]
         lines += [f"    ]).reshape({tuple(k.shape)!r})", "", ""]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from sympy.printing.julia import JuliaCodePrinter
 
-from ._common import Layout, NumberTweaks, comment, double, shape_str, unravel
+from ._common import Layout, NumberTweaks, comment, double, shape_str, statements, unravel
 
 
 class JuliaPrinter(NumberTweaks, JuliaCodePrinter):
@@ -36,6 +36,10 @@ def emit_julia(layout: Layout) -> dict[str, str]:
         "The numbered parameter list above is 1-based, as p[k] in Julia.",
     ]
     printer = JuliaPrinter()
+
+    def read(a: str, i: int) -> str:
+        return f"{a}[{', '.join(str(j + 1) for j in unravel(i, layout.arg_shape(a)))}]"
+
     out = [comment(layout.header("Julia", calling, base=1), "#").rstrip("\n"), "",
            f"module {s}", "", f"export {', '.join(layout.names)}", "",
            f"const ROBOT = {_string(r.name)}",
@@ -53,11 +57,7 @@ def emit_julia(layout: Layout) -> dict[str, str]:
             shape = layout.arg_shape(a)
             what = _string(f"{k.name}: {a}: expected size {shape_str(shape)}")
             out.append(f"    size({a}) == {shape_str(shape)} || throw(DimensionMismatch({what}))")
-        for sym, a, i in k.inputs:
-            idx = ", ".join(str(j + 1) for j in unravel(i, layout.arg_shape(a)))
-            out.append(f"    {sym.name} = {a}[{idx}]")
-        for sym, e in k.body:
-            out.append(f"    {sym.name} = {printer.doprint(e)}")
+        out += ["    " + line for line in statements(k, printer, read)]
         eltypes = ", ".join(f"eltype({a})" for a in (*k.args, "p"))
         out.append(f"    out = zeros(promote_type({eltypes}), {', '.join(map(str, k.shape))})")
         for i, e in enumerate(k.outputs):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from sympy.printing.octave import OctaveCodePrinter
 
-from ._common import Layout, NumberTweaks, comment, double, shape_str, unravel
+from ._common import Layout, NumberTweaks, comment, double, shape_str, statements, unravel
 
 
 class OctavePrinter(NumberTweaks, OctaveCodePrinter):
@@ -36,6 +36,10 @@ def emit_matlab(layout: Layout) -> dict[str, str]:
     ]
     head = comment(layout.header("Matlab/Octave", calling, base=1), "%")
     printer = OctavePrinter()
+
+    def read(a: str, i: int) -> str:
+        return f"{a}({', '.join(str(j + 1) for j in unravel(i, layout.arg_shape(a)))})"
+
     files: dict[str, str] = {}
     values = "; ".join("NaN" if v != v else double(v) for v in layout.defaults)
     files[f"{s}_default_params.m"] = (
@@ -65,11 +69,7 @@ def emit_matlab(layout: Layout) -> dict[str, str]:
             check = f"numel({a}) ~= {shape[0]}" if len(shape) == 1 else f"~isequal(size({a}), {want})"
             msg = _string(f"{fn}: {a}: expected size {shape_str(shape)}")
             lines += [f"if {check}", f"  error('jaxskid:size', {msg});", "end"]
-        for sym, a, i in k.inputs:
-            idx = ", ".join(str(j + 1) for j in unravel(i, layout.arg_shape(a)))
-            lines.append(f"{sym.name} = {a}({idx});")
-        for sym, e in k.body:
-            lines.append(f"{sym.name} = {printer.doprint(e)};")
+        lines += statements(k, printer, read, "{} = {};")
         lines.append(f"out = zeros({_size(k.shape)});")
         for i, e in enumerate(k.outputs):
             if e != 0:

@@ -1,6 +1,6 @@
-"""Python emitters: a NumPy module (``<stem>_numpy.py``) and the lowered JAX module (``<stem>_jax.py``).
+"""NumPy emitter: ``<stem>_numpy.py``.
 
-The NumPy module has one function per quantity, ``name(q, ..., p=None)``; ``p=None`` means
+The module has one function per quantity, ``name(q, ..., p=None)``; ``p=None`` means
 ``DEFAULT_PARAMS``. Every state argument has shape ``(n,)``, or ``(..., n)`` for a batch of states that
 the function evaluates vectorised; the result has shape ``(..., *shape)``.
 """
@@ -9,8 +9,7 @@ from __future__ import annotations
 
 from sympy.printing.numpy import NumPyPrinter
 
-from ..lowering._jax import module_source, request_key
-from ._common import Layout, NumberTweaks, comment, double, shape_str, unravel
+from ._common import Layout, NumberTweaks, comment, double, shape_str, statements, unravel
 
 
 class NumPyCodePrinter(NumberTweaks, NumPyPrinter):
@@ -60,6 +59,10 @@ def emit_numpy(layout: Layout) -> dict[str, str]:
            "    batch = numpy.broadcast_shapes(*(x.shape[:x.ndim - len(_SHAPES[a])] for a, x in arrays.items()))",
            "    return arrays, p, batch", "", ""]
     printer = NumPyCodePrinter()
+
+    def read(a: str, i: int) -> str:  # the entry of every state in a batch
+        return f"{a}[{i if a == 'p' else ', '.join(['...', *map(str, unravel(i, layout.arg_shape(a)))])}]"
+
     for k in layout.kernels:
         args = ", ".join(k.args)
         out += [f"def {k.name}({args}, p=None):",
@@ -70,11 +73,7 @@ def emit_numpy(layout: Layout) -> dict[str, str]:
                 '"""',
                 f"    _a, p, _batch = _inputs({k.name!r}, p, {', '.join(f'{a}={a}' for a in k.args)})"]
         out += [f"    {a} = _a[{a!r}]" for a in k.args]
-        for sym, a, i in k.inputs:
-            index = str(i) if a == "p" else ", ".join(["...", *map(str, unravel(i, layout.arg_shape(a)))])
-            out.append(f"    {sym.name} = {a}[{index}]")
-        for sym, e in k.body:
-            out.append(f"    {sym.name} = {printer.doprint(e)}")
+        out += ["    " + line for line in statements(k, printer, read)]
         out.append(f"    _out = numpy.zeros(_batch + ({k.size},))")
         for i, e in enumerate(k.outputs):
             if e != 0:
@@ -82,8 +81,3 @@ def emit_numpy(layout: Layout) -> dict[str, str]:
         out += [f"    return _out.reshape(_batch + {tuple(k.shape)!r})", "", ""]
     return {f"{s}_numpy.py": "\n".join(out).rstrip("\n") + "\n"}
 
-
-def emit_jax(layout: Layout) -> dict[str, str]:
-    """The module :func:`jaxskid.lower` generates and caches, for these quantities."""
-    eqs, names = layout.eqs, layout.names
-    return {f"{layout.stem}_jax.py": module_source(eqs, names, request_key(eqs.robot, names, eqs.options))}

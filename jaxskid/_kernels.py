@@ -1,4 +1,7 @@
-"""Helpers pasted into every generated JAX module (:data:`SOURCE`), which therefore stays self-contained.
+"""The fused JAX helpers of jaxskid: sine, cosine and reciprocal from multiply-adds, and the broadcast
+helpers of generated functions. Written once: the section between the two markers below is both the code
+of this module (importable: :func:`sin`, :func:`cos`, :func:`sincos`, :func:`recip`) and :data:`SOURCE`,
+the text pasted into every generated JAX module, which therefore stays self-contained.
 
 **Sine and cosine as plain multiply-adds that XLA fuses.** XLA on CPU treats ``sin`` and ``cos`` as
 expensive: it will not fuse them into a kernel that uses their value more than once per element, so
@@ -18,13 +21,25 @@ gives inf or nan, as a singular pivot should.
 
 **One shape for the whole program.** A generated function broadcasts every input entry it reads to the
 shape of its output (``_spread``), so that XLA sees one elementwise program and compiles it into one
-kernel (see :mod:`jaxskid.lowering._jax`). Broadcast values would make reverse-mode differentiation carry a
+kernel (see :mod:`jaxskid.codegen._jax`). Broadcast values would make reverse-mode differentiation carry a
 cotangent per output entry through the whole program, so each function is a ``jax.custom_jvp`` whose
 derivative is that of the same program on unbroadcast values (``_plain_jvp``): gradients cost what they
 cost without the broadcast.
+
+This module imports only JAX (no SymPy): the runtime and the applications use the same functions.
 """
 
-SOURCE = '''
+from __future__ import annotations
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+_BEGIN = "# >>> generated-module helpers"
+_END = "# <<< generated-module helpers"
+
+# >>> generated-module helpers
 _PIO2 = (1.57079632673412561417e+00, 6.07710050630396597660e-11, 2.02226624871116645580e-21)
 _PIO2_F32 = (1.5703125, 4.837512969970703125e-4, 7.54978995489188216e-8)
 _SIN = (1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
@@ -119,4 +134,28 @@ def _plain_jvp(body):
     def rule(primals, tangents):
         return jax.jvp(lambda *args: body(*args, _same), primals, tangents)
     return rule
-'''
+
+# <<< generated-module helpers
+
+
+def _section() -> str:
+    """The text between the markers: exactly what this module executed above."""
+    text = Path(__file__).read_text(encoding="utf-8")
+    begin = text.index(_BEGIN + "\n") + len(_BEGIN) + 1
+    return text[begin:text.index(_END, begin)].rstrip() + "\n"
+
+
+SOURCE: str = "\n" + _section()
+"""The helpers as source text, pasted into every generated JAX module after ``import jax`` and
+``import jax.numpy as jnp``."""
+
+sin = _sin
+"""``sin(x)``, fusible (see the module docstring); elementwise, any shape, exact derivative."""
+cos = _cos
+"""``cos(x)``, fusible (see the module docstring); elementwise, any shape, exact derivative."""
+sincos = _sincos
+"""``(sin(x), cos(x))`` from one argument reduction."""
+recip = _recip
+"""``1 / x`` by Newton's iteration (see the module docstring); elementwise, any shape."""
+
+__all__ = ["SOURCE", "cos", "recip", "sin", "sincos"]

@@ -1,4 +1,4 @@
-"""Printer rules shared by the JAX lowering and every code generator."""
+"""The number rules every printer of :mod:`jaxskid.codegen` shares, the JAX target's included."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ def double(x: float) -> str:
 
 
 class NumberTweaks:
-    """Printer mixin shared by every target (the tweaks :mod:`jaxskid.lowering._jax` makes for JAX).
+    """Printer mixin shared by every target (JAX, NumPy, C, C++, Cython, Julia, Matlab).
 
     Floats, rationals and integers print as round-trip double literals, pi and e as numbers (C99 has no
     ``M_PI``), small integer powers as products (``x*x``, ``1.0/(x*x)``) rather than a general ``pow``, and
