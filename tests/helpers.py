@@ -10,6 +10,7 @@ import importlib.metadata
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 import jaxskid
 
@@ -43,6 +44,19 @@ def load(name: str) -> jaxskid.Robot:
     if name in URDFS:
         return jaxskid.load(URDFS[name])
     return jaxskid.load(ROBOTS_DIR / f"{name}.yaml")
+
+
+def pinocchio_urdf_model(path: Path, lock: dict[str, float] | None = None):
+    """Pinocchio's own model of a URDF (its parser), the joints in ``lock`` removed at the given positions
+    (a continuous joint's angle is Pinocchio's (cos, sin) pair)."""
+    model = pin.buildModelFromUrdf(str(path))
+    if lock:
+        q = pin.neutral(model)
+        for name, value in lock.items():
+            j = model.joints[model.getJointId(name)]
+            q[j.idx_q : j.idx_q + j.nq] = [value] if j.nq == 1 else [np.cos(value), np.sin(value)]
+        model = pin.buildReducedModel(model, [model.getJointId(name) for name in lock], q)
+    return model
 
 
 def lowered(robot: jaxskid.Robot, closed: bool, extra=()):

@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from helpers import FINGERS, ROBOTS_DIR, URDFS, load, rel_err
+from helpers import FINGERS, ROBOTS_DIR, URDFS, load, pinocchio_urdf_model, rel_err
 from pinref import to_pinocchio
 from randrobot import random_robot
 
@@ -19,11 +19,9 @@ TOL = 1e-9
 
 
 def pinocchio_model(name: str):
-    model = pin.buildModelFromUrdf(str(URDFS["panda" if name == "panda7" else name]))
     if name == "panda7":
-        locked = [model.getJointId(j) for j in FINGERS]
-        model = pin.buildReducedModel(model, locked, pin.neutral(model))
-    return model
+        return pinocchio_urdf_model(URDFS["panda"], FINGERS)
+    return pinocchio_urdf_model(URDFS[name])
 
 
 def references(model, q, qd, qdd):

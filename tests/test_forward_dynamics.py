@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from helpers import FINGERS, PANDA, REPO, load, lowered
+from helpers import FINGERS, PANDA, REPO, load, lowered, pinocchio_urdf_model
 from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
@@ -26,9 +26,7 @@ ROUTES = pytest.mark.parametrize("closed", [False, True], ids=["numeric", "close
 @pytest.fixture(scope="module", params=[False, True], ids=["numeric", "closed-form"])
 def panda(request):
     robot = load("panda7")
-    model = pin.buildModelFromUrdf(str(PANDA))
-    model = pin.buildReducedModel(model, [model.getJointId(k) for k in FINGERS], pin.neutral(model))
-    return robot, lowered(robot, request.param), model
+    return robot, lowered(robot, request.param), pinocchio_urdf_model(PANDA, FINGERS)
 
 
 def test_forward_dynamics_matches_pinocchio_aba_panda(panda):

@@ -20,7 +20,7 @@ import jaxskid
 from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
-from helpers import FINGERS, PANDA, URDFS as ERD_URDFS
+from helpers import FINGERS, PANDA, URDFS as ERD_URDFS, pinocchio_urdf_model
 
 REPO = Path(__file__).resolve().parents[1]
 URDFS = {
@@ -33,14 +33,7 @@ BATCH = 100  # = base_parameters' default sample count: one compiled batch size 
 
 def pin_model(name):
     """Pinocchio's own model of the URDF (its parser), locked joints removed at the same positions."""
-    path, lock = URDFS[name]
-    model = pin.buildModelFromUrdf(str(path))
-    if lock:
-        q = pin.neutral(model)
-        for k, v in lock.items():
-            q[model.joints[model.getJointId(k)].idx_q] = v
-        model = pin.buildReducedModel(model, [model.getJointId(k) for k in lock], q)
-    return model
+    return pinocchio_urdf_model(*URDFS[name])
 
 
 @pytest.fixture(scope="module")

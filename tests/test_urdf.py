@@ -75,11 +75,7 @@ def pin_configuration(model, names, q) -> np.ndarray:
 
 
 def reference_model(key, lock=None):
-    model = pin.buildModelFromUrdf(str(URDFS[key]))
-    if lock:
-        q0 = pin_configuration(model, list(lock), list(lock.values()))
-        model = pin.buildReducedModel(model, [model.getJointId(n) for n in lock], q0)
-    return model
+    return helpers.pinocchio_urdf_model(URDFS[key], lock)
 
 
 CASES = [(key, None) for key in URDFS] + [("panda", FINGERS)]
