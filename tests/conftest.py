@@ -1,4 +1,5 @@
-"""Strict JAX settings for every test: float64, and no silent rank promotion."""
+"""Strict JAX settings for every test (float64, no silent rank promotion), a private cache directory, and the
+fixtures that several test files share. Shared robots, paths and error measures: tests/helpers.py."""
 
 import os
 import sys
@@ -12,6 +13,9 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+import jaxskid  # noqa: E402  (after the JAX settings)
+from helpers import FD, ROBOTS_DIR  # noqa: E402  (after tests/ is on sys.path)
+
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
@@ -24,3 +28,10 @@ def _private_cache(tmp_path_factory):
         os.environ.pop("JAXSKID_CACHE_DIR", None)
     else:
         os.environ["JAXSKID_CACHE_DIR"] = old
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    """The double pendulum (robots/double_pendulum.yaml) and its lowered M and tau: (robot, dyn)."""
+    robot = jaxskid.load(ROBOTS_DIR / "double_pendulum.yaml")
+    return robot, jaxskid.lower(robot, FD)

@@ -8,7 +8,6 @@ Numbers are checked against independent references: templates and converted mode
 
 from __future__ import annotations
 
-import importlib.metadata
 import importlib.util
 import json
 import shutil
@@ -23,16 +22,12 @@ import pytest
 import yaml
 
 import jaxskid
+from helpers import PANDA
 from pinref import to_pinocchio
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "robots" / "arm_2r.yaml"
 LEG = ROOT / "robots" / "hopping_leg.yaml"
-PANDA = Path(
-    importlib.metadata.distribution("example-robot-data").locate_file(
-        "cmeel.prefix/share/example-robot-data/robots/panda_description/urdf/panda.urdf"
-    )
-)
 COMMANDS = ("generate", "template", "convert", "info", "graph")
 
 

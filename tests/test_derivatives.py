@@ -15,8 +15,6 @@ of a 7-DOF arm would dominate the suite; ``test_compiled_matches_eager`` covers 
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -25,33 +23,14 @@ import pytest
 import sympy as sp
 
 import jaxskid
+from helpers import ROBOTS_DIR, load, max_rel_err
 from pinref import to_pinocchio
 
-ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
-ROBOTS_DIR = Path(__file__).parents[1] / "robots"
-FINGERS = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 BASES = ["mass_matrix", "coriolis_matrix", "gravity_torques", "inverse_dynamics", "external_torques"]
 ALL = [f"{b}{s}" for b in BASES for s in ("", "_dot", "_ddot")]
 NEXT = {"q": "qd", "qd": "qdd", "qdd": "q3d", "q3d": "q4d", "wrench": "wrench_d", "wrench_d": "wrench_dd"}
 N_STATES = 4
 TOL = 1e-9
-
-
-def load(name: str) -> jaxskid.Robot:
-    if name == "panda7":
-        return jaxskid.load(ERD / "panda_description/urdf/panda.urdf", lock=FINGERS)
-    if name == "ur5":
-        return jaxskid.load(ERD / "ur_description/urdf/ur5_robot.urdf")
-    if name == "solo12":
-        return jaxskid.load(ERD / "solo_description/robots/solo12.urdf")
-    return jaxskid.load(ROBOTS_DIR / f"{name}.yaml")
-
-
-def rel_err(ours, ref) -> float:
-    """Largest normwise relative error over the states (leading axis)."""
-    ours, ref = np.asarray(ours), np.asarray(ref)
-    errs = [np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-12) for a, b in zip(ours, ref)]
-    return max(errs)
 
 
 SLOW = pytest.mark.slow
@@ -103,8 +82,8 @@ def jvp_references(dyn, base, state):
 def test_time_derivatives_match_nested_jvp(case, base):
     name, robot, dyn, state = case
     first, second = jvp_references(dyn, base, state)
-    err1 = rel_err(evaluate(dyn, f"{base}_dot", state), first)
-    err2 = rel_err(evaluate(dyn, f"{base}_ddot", state), second)
+    err1 = max_rel_err(evaluate(dyn, f"{base}_dot", state), first)
+    err2 = max_rel_err(evaluate(dyn, f"{base}_ddot", state), second)
     assert err1 <= TOL, f"{name} {base}_dot: relative error {err1:.3g} against jax.jvp"
     assert err2 <= TOL, f"{name} {base}_ddot: relative error {err2:.3g} against nested jax.jvp"
 
@@ -132,8 +111,8 @@ def test_mass_matrix_derivatives_from_coriolis(case):
     """dM/dt = C + C^T and d^2M/dt^2 = dC/dt + dC/dt^T, for the Christoffel-consistent C."""
     name, _, dyn, state = case
     c, cd = evaluate(dyn, "coriolis_matrix", state), evaluate(dyn, "coriolis_matrix_dot", state)
-    assert rel_err(evaluate(dyn, "mass_matrix_dot", state), c + np.swapaxes(c, 1, 2)) <= TOL, name
-    assert rel_err(evaluate(dyn, "mass_matrix_ddot", state), cd + np.swapaxes(cd, 1, 2)) <= TOL, name
+    assert max_rel_err(evaluate(dyn, "mass_matrix_dot", state), c + np.swapaxes(c, 1, 2)) <= TOL, name
+    assert max_rel_err(evaluate(dyn, "mass_matrix_ddot", state), cd + np.swapaxes(cd, 1, 2)) <= TOL, name
 
 
 def test_first_derivatives_match_pinocchio(case):
@@ -148,9 +127,9 @@ def test_first_derivatives_match_pinocchio(case):
     for k in range(N_STATES):
         dq, dv, da = pin.computeRNEADerivatives(model, data, q[k], qd[k], qdd[k])
         ref = dq @ qd[k] + dv @ qdd[k] + np.triu(da) @ q3d[k] + np.triu(da, 1).T @ q3d[k]
-        assert rel_err(tau_dot[k:k + 1], ref[None]) <= TOL, f"{name} inverse_dynamics_dot vs Pinocchio"
+        assert max_rel_err(tau_dot[k:k + 1], ref[None]) <= TOL, f"{name} inverse_dynamics_dot vs Pinocchio"
         dg = pin.computeGeneralizedGravityDerivatives(model, data, q[k])
-        assert rel_err(grav_dot[k:k + 1], (dg @ qd[k])[None]) <= TOL, f"{name} gravity_torques_dot vs Pinocchio"
+        assert max_rel_err(grav_dot[k:k + 1], (dg @ qd[k])[None]) <= TOL, f"{name} gravity_torques_dot vs Pinocchio"
 
 
 def test_compiled_matches_eager():

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import jax
 import jax.numpy as jnp
@@ -11,39 +9,19 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
+from helpers import FINGERS, ROBOTS_DIR, URDFS, load, pinocchio_urdf_model, rel_err
 from pinref import to_pinocchio
 from randrobot import random_robot
 
-ERD = __import__("pathlib").Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
-URDFS = {
-    "panda": ERD / "panda_description/urdf/panda.urdf",
-    "ur5": ERD / "ur_description/urdf/ur5_robot.urdf",
-    "solo12": ERD / "solo_description/robots/solo12.urdf",
-    "double_pendulum": ERD / "double_pendulum_description/urdf/double_pendulum.urdf",
-}
-FINGERS = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 QUANTITIES = ["mass_matrix", "coriolis_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics", "forward_kinematics"]
 N_STATES = 200
 TOL = 1e-9
 
 
-def rel_err(a, b) -> float:
-    a, b = np.asarray(a), np.asarray(b)
-    return float(np.linalg.norm((a - b).ravel()) / max(1e-300, np.linalg.norm(b.ravel())))
-
-
 def pinocchio_model(name: str):
-    model = pin.buildModelFromUrdf(str(URDFS["panda" if name == "panda7" else name]))
     if name == "panda7":
-        locked = [model.getJointId(j) for j in FINGERS]
-        model = pin.buildReducedModel(model, locked, pin.neutral(model))
-    return model
-
-
-def jaxskid_robot(name: str):
-    if name == "panda7":
-        return jaxskid.load(URDFS["panda"], lock=FINGERS)
-    return jaxskid.load(URDFS[name])
+        return pinocchio_urdf_model(URDFS["panda"], FINGERS)
+    return pinocchio_urdf_model(URDFS[name])
 
 
 def references(model, q, qd, qdd):
@@ -64,7 +42,7 @@ def references(model, q, qd, qdd):
 
 @pytest.fixture(scope="module", params=["panda", "panda7", "ur5", "solo12", "double_pendulum"])
 def real_robot(request):
-    robot = jaxskid_robot(request.param)
+    robot = load(request.param)
     model = pinocchio_model(request.param)
     dyn = jaxskid.lower(robot, QUANTITIES)
     return request.param, robot, model, dyn
@@ -150,7 +128,7 @@ def test_random_trees_match_pinocchio(seed):
 
 @pytest.fixture(scope="module")
 def panda_tau():
-    robot = jaxskid.load(URDFS["panda"], lock=FINGERS)
+    robot = load("panda7")
     return robot, jaxskid.lower(robot, ["inverse_dynamics"])
 
 
@@ -246,7 +224,7 @@ def test_generated_functions_inside_a_users_jit(panda_tau):
 def test_jit_helper_at_top_level_and_inside_a_callers_trace():
     """jaxskid.jit compiles with jaxskid's compiler options from Python, and is a plain jit inside another
     trace (JAX accepts compiler options only on a top-level jit)."""
-    robot = jaxskid.load(Path(__file__).resolve().parents[1] / "robots" / "double_pendulum.yaml")
+    robot = jaxskid.load(ROBOTS_DIR / "double_pendulum.yaml")
     dyn = jaxskid.lower(robot, ["mass_matrix", "gravity_torques"])
     q = jnp.asarray([[0.3, -0.7], [1.1, 0.2]])
 

@@ -18,8 +18,6 @@ and of the right-hand side; the reported condition number is checked against mpm
 
 from __future__ import annotations
 
-import importlib.metadata
-
 import jax
 import jax.numpy as jnp
 import mpmath
@@ -28,6 +26,7 @@ import pytest
 import sympy as sp
 
 import jaxskid
+from helpers import load
 from jaxskid import Joint, Robot
 from jaxskid.testing import _reference as ref_
 
@@ -202,9 +201,7 @@ def test_grad_is_finite_and_exact_at_zero_and_singular_poses(chain):
 # ---------------------------------------------------------------------------------------------- a real robot
 @pytest.fixture(scope="module")
 def panda():
-    erd = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
-    robot = jaxskid.load(erd / "panda_description/urdf/panda.urdf",
-                         lock={"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0})
+    robot = load("panda7")
     names = ("mass_matrix", "gravity_torques", "inverse_dynamics")
     eqs = jaxskid.derive(robot, names)
     dyn = jaxskid.lower(robot, names)

@@ -21,20 +21,16 @@ What is compared with what:
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import jax
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import jaxskid
+from helpers import ROBOTS_DIR, load
 from pinref import to_pinocchio
 from randrobot import random_robot
 
-ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
-ROBOTS_DIR = Path(__file__).parents[1] / "robots"
-FINGERS = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 QUANTITIES = [
     "body_twist", "hybrid_twist", "body_acceleration", "hybrid_acceleration",
     "ee_body_twist", "ee_hybrid_twist", "ee_body_acceleration", "ee_hybrid_acceleration",
@@ -46,16 +42,10 @@ TOL = 1e-9
 LOCAL, LWA = pin.ReferenceFrame.LOCAL, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
-def load(name: str) -> jaxskid.Robot:
-    if name == "panda7":
-        return jaxskid.load(ERD / "panda_description/urdf/panda.urdf", lock=FINGERS)
-    if name == "ur5":
-        return jaxskid.load(ERD / "ur_description/urdf/ur5_robot.urdf")
-    if name == "solo12":
-        return jaxskid.load(ERD / "solo_description/robots/solo12.urdf")
+def case_robot(name: str) -> jaxskid.Robot:
     if name == "random_tree":  # prismatic joints, screws off the frame origin, end-effector offsets
         return random_robot(np.random.default_rng(21), 6, tree=True)
-    return jaxskid.load(ROBOTS_DIR / f"{name}.yaml")
+    return load(name)
 
 
 def close(ours, ref, what):
@@ -72,7 +62,7 @@ def omega_v(m: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope="module", params=[pytest.param("panda7", marks=pytest.mark.slow), "ur5", "solo12", "hopping_leg",
                                         pytest.param("random_tree", marks=pytest.mark.slow)])
 def case(request):
-    robot = load(request.param)
+    robot = case_robot(request.param)
     params = robot.default_params()
     model, _ = to_pinocchio(robot, params)
     dyn = jaxskid.lower(robot, QUANTITIES)
@@ -116,6 +106,7 @@ def test_body_twists_and_accelerations(case):
 
 def test_end_effector_twists_and_accelerations(case):
     name, robot, model, q, qd, qdd, ours = case
+    assert robot.end_effectors, f"{name}: no end-effector to check"
     for k, data in pinocchio_states(model, q, qd, qdd):
         for e, frame in enumerate(robot.end_effectors):
             fid = model.getFrameId(frame)
@@ -131,6 +122,7 @@ def test_end_effector_twists_and_accelerations(case):
 
 def test_end_effector_jacobians_and_time_variations(case):
     name, robot, model, q, qd, qdd, ours = case
+    assert robot.end_effectors, f"{name}: no end-effector to check"
     for k, data in pinocchio_states(model, q, qd, qdd):
         for e, frame in enumerate(robot.end_effectors):
             fid = model.getFrameId(frame)

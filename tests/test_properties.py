@@ -33,6 +33,7 @@ from jaxskid import Frame, Joint, Robot
 from jaxskid.testing import _reference as ref_
 from jaxskid.testing._recursive import recursive_dynamics
 from pinref import to_pinocchio
+from helpers import rel_err
 
 QUANTITIES = ("mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics")
 STANDARD = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
@@ -111,18 +112,13 @@ def random_trees(draw, max_joints: int = 12):
     return Robot.create(f"tree{n}", joints, g, frames, [f.name for f in frames], defaults)
 
 
-def rel_err(a, b, scale: float = 1.0) -> float:
-    """||a - b|| / max(||b||, 1e-3 scale): relative, except for results that vanish (C qd of one joint)
-    where round-off of terms of size ``scale`` is all there is."""
-    a, b = np.asarray(a), np.asarray(b)
-    return float(np.linalg.norm((a - b).ravel()) / max(1e-300, np.linalg.norm(b.ravel()), 1e-3 * scale))
-
-
 def term_scale(expected, s, k) -> float:
-    """The size of the terms that make up M, C qd, Q_grav and tau at state k."""
+    """``rel_err``'s floor at state k: 1e-3 times the size of the terms that make up M, C qd, Q_grav and tau.
+    The error is relative, except for results that vanish (C qd of one joint), where round-off of those
+    terms is all there is."""
     m = np.linalg.norm(expected["mass_matrix"][k])
-    return m * (1 + np.linalg.norm(s["qd"][k]) ** 2 + np.linalg.norm(s["qdd"][k])) + np.linalg.norm(
-        expected["gravity_torques"][k])
+    return 1e-3 * (m * (1 + np.linalg.norm(s["qd"][k]) ** 2 + np.linalg.norm(s["qdd"][k])) + np.linalg.norm(
+        expected["gravity_torques"][k]))
 
 
 def states(robot, seed: int = 0):

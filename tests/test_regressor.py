@@ -7,7 +7,6 @@ arm (Lynch & Park 2017, sec. 8.1.1); the chi-square distribution of least-square
 
 from __future__ import annotations
 
-import importlib.metadata
 from pathlib import Path
 
 import jax
@@ -21,29 +20,20 @@ import jaxskid
 from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
+from helpers import FINGERS, PANDA, URDFS as ERD_URDFS, pinocchio_urdf_model
 
-ROBOTS = Path(
-    importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
-)
 REPO = Path(__file__).resolve().parents[1]
 URDFS = {
-    "panda": (ROBOTS / "panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
-    "ur5": (ROBOTS / "ur_description/urdf/ur5_robot.urdf", None),
-    "solo12": (ROBOTS / "solo_description/robots/solo12.urdf", None),
+    "panda": (PANDA, FINGERS),
+    "ur5": (ERD_URDFS["ur5"], None),
+    "solo12": (ERD_URDFS["solo12"], None),
 }
 BATCH = 100  # = base_parameters' default sample count: one compiled batch size per robot
 
 
 def pin_model(name):
     """Pinocchio's own model of the URDF (its parser), locked joints removed at the same positions."""
-    path, lock = URDFS[name]
-    model = pin.buildModelFromUrdf(str(path))
-    if lock:
-        q = pin.neutral(model)
-        for k, v in lock.items():
-            q[model.joints[model.getJointId(k)].idx_q] = v
-        model = pin.buildReducedModel(model, [model.getJointId(k) for k in lock], q)
-    return model
+    return pinocchio_urdf_model(*URDFS[name])
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,6 @@ included.
 
 from __future__ import annotations
 
-import importlib.metadata
 import logging
 from pathlib import Path
 
@@ -17,23 +16,15 @@ import pinocchio as pin
 import pytest
 import sympy as sp
 
+import helpers
 from jaxskid import ModelError
 from jaxskid.model._lie import STANDARD_PARAMETER_NAMES
 from jaxskid.description._urdf import read_urdf
 
 DATA = Path(__file__).parent / "data" / "urdf"
-ROBOTS = Path(
-    importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
-)
-PANDA = ROBOTS / "panda_description/urdf/panda.urdf"
-URDFS = {
-    "panda": PANDA,
-    "ur5": ROBOTS / "ur_description/urdf/ur5_robot.urdf",
-    "solo12": ROBOTS / "solo_description/robots/solo12.urdf",
-    "double_pendulum": ROBOTS / "double_pendulum_description/urdf/double_pendulum.urdf",
-    "double_pendulum_continuous": ROBOTS / "double_pendulum_description/urdf/double_pendulum_continuous.urdf",
-    "branched": DATA / "branched.urdf",
-}
+URDFS = {**helpers.URDFS, "branched": DATA / "branched.urdf"}
+PANDA = helpers.PANDA
+# part-open, unlike helpers.FINGERS, and at two values, so that a swap would show
 FINGERS = {"panda_finger_joint1": 0.013, "panda_finger_joint2": 0.031}
 SWAP = np.block([[np.zeros((3, 3)), np.eye(3)], [np.eye(3), np.zeros((3, 3))]])  # (v, omega) <-> (omega, v)
 
@@ -84,11 +75,7 @@ def pin_configuration(model, names, q) -> np.ndarray:
 
 
 def reference_model(key, lock=None):
-    model = pin.buildModelFromUrdf(str(URDFS[key]))
-    if lock:
-        q0 = pin_configuration(model, list(lock), list(lock.values()))
-        model = pin.buildReducedModel(model, [model.getJointId(n) for n in lock], q0)
-    return model
+    return helpers.pinocchio_urdf_model(URDFS[key], lock)
 
 
 CASES = [(key, None) for key in URDFS] + [("panda", FINGERS)]

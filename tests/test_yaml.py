@@ -349,6 +349,7 @@ def test_quadruped_feet_and_tree():
     p = robot.default_params()
     assert robot.parents == (-1, 0, 1, -1, 3, 4, -1, 6, 7, -1, 9, 10) and robot.base == "trunk"
     _, _, poses = rigid_body_terms(robot, np.zeros(12))
+    assert len(robot.end_effectors) == 4  # one foot per leg, in the order zipped below
     for name, (sx, sy) in zip(robot.end_effectors, [(1, 1), (1, -1), (-1, 1), (-1, -1)]):
         frame = robot.frame(name)
         foot = poses[frame.body] @ numeric(frame.offset, p)

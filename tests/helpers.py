@@ -1,0 +1,79 @@
+"""Robots, paths and error measures shared by the tests.
+
+Robots come from two places: this repository's ``robots/*.yaml`` and the URDFs of the ``example-robot-data``
+package (installed by the test extra; its files sit under the ``cmeel.prefix`` of its distribution).
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+import jaxskid
+
+REPO = Path(__file__).resolve().parents[1]
+ROBOTS_DIR = REPO / "robots"
+ERD = Path(
+    importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
+)
+PANDA = ERD / "panda_description/urdf/panda.urdf"
+URDFS = {
+    "panda": PANDA,
+    "ur5": ERD / "ur_description/urdf/ur5_robot.urdf",
+    "solo12": ERD / "solo_description/robots/solo12.urdf",
+    "double_pendulum": ERD / "double_pendulum_description/urdf/double_pendulum.urdf",
+    "double_pendulum_continuous": ERD / "double_pendulum_description/urdf/double_pendulum_continuous.urdf",
+}
+FINGERS = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}  # locked closed: the Panda as a 7-DOF arm
+
+# Forward dynamics from M(q) and tau(q, qd, qdd) (the numeric L D L^T solve); see ``lowered``.
+FD = ["mass_matrix", "inverse_dynamics"]
+
+
+def load(name: str) -> jaxskid.Robot:
+    """A test robot by name.
+
+    ``"panda7"``: the Panda with its fingers locked (``FINGERS``, 7 DOF); a key of ``URDFS``: that URDF from
+    example-robot-data (``"double_pendulum"`` is the URDF one); any other name: ``robots/{name}.yaml``.
+    """
+    if name == "panda7":
+        return jaxskid.load(PANDA, lock=FINGERS)
+    if name in URDFS:
+        return jaxskid.load(URDFS[name])
+    return jaxskid.load(ROBOTS_DIR / f"{name}.yaml")
+
+
+def pinocchio_urdf_model(path: Path, lock: dict[str, float] | None = None):
+    """Pinocchio's own model of a URDF (its parser), the joints in ``lock`` removed at the given positions
+    (a continuous joint's angle is Pinocchio's (cos, sin) pair)."""
+    model = pin.buildModelFromUrdf(str(path))
+    if lock:
+        q = pin.neutral(model)
+        for name, value in lock.items():
+            j = model.joints[model.getJointId(name)]
+            q[j.idx_q : j.idx_q + j.nq] = [value] if j.nq == 1 else [np.cos(value), np.sin(value)]
+        model = pin.buildReducedModel(model, [model.getJointId(name) for name in lock], q)
+    return model
+
+
+def lowered(robot: jaxskid.Robot, closed: bool, extra=()):
+    """Forward dynamics from M and tau (numeric L D L^T) or from the closed-form quantity."""
+    return jaxskid.lower(robot, [*FD, *extra, *(["forward_dynamics"] if closed else [])])
+
+
+def rel_err(ours, ref, floor: float = 1e-12) -> float:
+    """Normwise relative error ``||ours - ref|| / max(||ref||, floor)``, 2-norm over all entries.
+
+    ``floor`` is the size below which ``ref`` counts as zero; the error is then absolute, scaled by 1 / floor.
+    """
+    ours, ref = np.asarray(ours), np.asarray(ref)
+    den = max(float(np.linalg.norm(ref.ravel())), floor, np.finfo(float).tiny)
+    return float(np.linalg.norm((ours - ref).ravel()) / den)
+
+
+def max_rel_err(ours, ref, floor: float = 1e-12) -> float:
+    """The largest ``rel_err`` over the leading (state) axis of ``ours`` and ``ref``."""
+    return max(rel_err(a, b, floor) for a, b in zip(ours, ref, strict=True))
