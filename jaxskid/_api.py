@@ -26,7 +26,7 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **
 
         return read_urdf(p, lock=lock, **options)
     if ext in (".yaml", ".yml", ".json"):
-        from .description._yaml import read_description
+        from .description._yaml_schema import read_description
 
         if options:
             raise ModelError(f"unknown option(s) {', '.join(options)} for a {ext} file", source=str(p))
