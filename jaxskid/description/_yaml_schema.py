@@ -60,6 +60,7 @@ import sympy as sp
 from .._errors import ModelError
 from ..model._robot import Frame, Joint, Robot, spatial_to_body
 from ..model._validate import check_parents, describe
+from ._keymap import KeyMap
 from ._yaml_file import load_mapping
 from ._yaml_values import ValueReader
 
@@ -141,24 +142,6 @@ def _parse(data, source: str) -> "_Parsed":
         raise exc.located(source=source) from None
 
 
-class KeyMap:
-    """Where each part of the model came from: model path prefix (``joints[1].inertia``) -> key path."""
-
-    def __init__(self):
-        self.keys: dict[str, str] = {"defaults": "assignments", "end_effectors": "ee_names"}
-
-    def add(self, model_path: str, key_path: str) -> None:
-        self.keys[model_path] = key_path
-
-    def relocate(self, err: ModelError) -> ModelError:
-        """``err`` with the longest known prefix of its path replaced by the description's key path."""
-        where = err.where or ""
-        for k in range(len(where), 0, -1):
-            if (k == len(where) or where[k] in ".[") and where[:k] in self.keys:
-                return ModelError(err.message, where=self.keys[where[:k]] + where[k:], source=err.source)
-        return err
-
-
 @dataclass(frozen=True)
 class _Parsed:
     arguments: dict  # the arguments of Robot.create
@@ -174,7 +157,7 @@ class _Parser(ValueReader):
         super().__init__()
         self.data = data
         self.source = source
-        self.keys = KeyMap()
+        self.keys = KeyMap({"defaults": "assignments", "end_effectors": "ee_names"})
 
     def parse(self) -> _Parsed:
         d = self.data
