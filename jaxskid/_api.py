@@ -7,9 +7,10 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from .runtime._dynamics import Dynamics
-from .equations._derive import Options
-from ._errors import ModelError
-from .lowering._jax import generate_module
+from .equations._derive import Equations, Options
+from ._errors import ModelError, RequestError
+from .lowering._jax import _load_source as load_source
+from .lowering._jax import generate_module, module_source, request_key
 from .model._robot import Robot
 
 
@@ -35,7 +36,7 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **
 
 
 def lower(
-    robot: Robot,
+    robot: Robot | Equations,
     quantities: Sequence[str] | str | None = None,
     *,
     symbolic: Iterable[str] | None = None,
@@ -47,26 +48,26 @@ def lower(
     """Derive, lower and wrap the requested quantities of ``robot`` (only those).
 
     Args:
-        robot: the model.
+        robot: the model, or equations already derived from it (:func:`jaxskid.derive`): then they are
+            lowered as they are, and ``quantities``, ``symbolic`` and ``options`` must be left out.
         quantities: names from :data:`jaxskid.QUANTITIES`; ``None`` for :data:`jaxskid.DEFAULT_QUANTITIES`,
             ``"all"`` for every quantity.
         symbolic: the parameters that stay inputs of the generated functions; every other parameter is
-            replaced by its default value (the ``assignments``). ``None`` keeps all parameters symbolic.
+            replaced by its default value (the ``assignments``, :meth:`Robot.keep_symbolic`). ``None`` keeps
+            all parameters symbolic.
         cache: reuse and write generated modules in ``cache_dir`` (default :func:`jaxskid.cache_dir`).
         options: how expressions are formed (:class:`jaxskid.Options`: CSE, simplification, trig).
         progress: show a progress bar while deriving.
     """
+    if isinstance(robot, Equations):
+        if quantities is not None or symbolic is not None or options is not None:
+            raise RequestError("lower(equations): the equations are derived already; leave out quantities, "
+                               "symbolic and options")
+        names = tuple(robot.quantities)
+        source = module_source(robot, names, request_key(robot.robot, names, robot.options))
+        return Dynamics(load_source(source, "<jaxskid>"), source, None)
     if symbolic is not None:
-        keep = set(symbolic)
-        unknown = keep - set(robot.parameters)
-        if unknown:
-            raise ModelError(
-                f"unknown parameter(s) {', '.join(sorted(unknown))}; parameters are {', '.join(robot.parameters)}",
-                where="symbolic",
-            )
-        fixed = [p for p in robot.parameters if p not in keep]
-        if fixed:
-            robot = robot.substitute(fixed)
+        robot = robot.keep_symbolic(symbolic)
     ns, source, path = generate_module(
         robot, quantities, cache=cache, directory=cache_dir, options=options, progress=progress
     )
