@@ -256,16 +256,19 @@ def template(structure, output, name, force):
     """
     import re
 
-    from .description._templates import render_template
+    from jaxskid import RequestError
+
+    from .description._templates import check_structure, render_template
 
     suffix = Path(output).suffix.lower()
     fmt = {".yaml": "yaml", ".yml": "yaml", ".json": "json", ".py": "py"}.get(suffix)
     if fmt is None:
         raise click.BadParameter(f"expected a .yaml, .yml, .json or .py file name, got {output!r}",
                                  param_hint="OUTPUT")
-    if not re.fullmatch(r"[RrPp]{1,64}", structure):
-        raise click.BadParameter(f"expected 1 to 64 letters R and P (e.g. RRP), got {structure!r}",
-                                 param_hint="'-S' / '--structure'")
+    try:
+        check_structure(structure)
+    except RequestError as exc:
+        raise click.BadParameter(str(exc), param_hint="'-S' / '--structure'") from None
     if name is None:
         name = re.sub(r"[^A-Za-z0-9_]+", "_", Path(output).stem).strip("_") or "robot"
         if name[0].isdigit():

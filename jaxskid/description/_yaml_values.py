@@ -22,8 +22,8 @@ INERTIA_KEYS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
 
 
 class ValueReader:
-    """Reads entries; ``defaults`` (parameter name -> number) serve the checks that need numbers, and a
-    name in ``reserved`` (a joint variable -> the key that defines it) may not be a parameter."""
+    """Reads entries. The default parameter values (:meth:`set_defaults`) serve the checks that need
+    numbers; a name in ``reserved`` (a joint variable -> the key that defines it) may not be a parameter."""
 
     def __init__(self):
         self.values: dict = {}  # parameter symbol -> default value, for numeric checks

@@ -160,7 +160,7 @@ def inertia_matrix(inertia) -> sp.Matrix:
 def transform_inertia(m6: sp.Matrix, c: sp.Matrix) -> Matrix:
     """Mass-inertia of a body whose frame has pose ``c = (R, p)`` in a frame F, re-expressed in F.
 
-    This is ``M_F = Ad(C^-1)^T M Ad(C^-1)`` (Featherstone 2008, eq. 2.66, in (omega, v) order), written
+    This is ``M_F = Ad(C^-1)^T M Ad(C^-1)`` (Lynch & Park 2017, eq. 8.42, in (omega, v) order), written
     with the standard parameters so that the result keeps the exact structure ``[[I_o, h~], [-h~, m 1]]``
     whatever the round-off in ``R``: ``m`` stays, the first moment becomes ``h_F = R h + m p``, and the
     rotational inertia about F's origin is ``I_F = R I_o R^T - (R h)~ p~ - p~ (R h)~ - m p~ p~`` (the

@@ -248,7 +248,7 @@ def check_mass_inertia(m6: sp.Matrix, values: Mapping, where: str) -> None:
         return
     with np.errstate(all="ignore"):
         a = np.array(xs, dtype=float).reshape(6, 6)
-        if not np.all(np.isfinite(a)) or np.abs(a).max() > 1e150:
+        if not np.all(np.isfinite(a)) or np.abs(a).max() > LARGEST:
             raise ModelError("expected finite mass-inertia values of a physical size", where=where)
         m = a[5, 5]
         if m == 0:
