@@ -165,8 +165,9 @@ def generate(robot, targets, quantities, out, lock, symbolic, check, force):
     if symbolic is not None:
         model = model.keep_symbolic([s.strip() for s in symbolic.split(",") if s.strip()], where="--symbolic")
     wanted = _merge(quantities)
+    wanted = "all" if wanted and "all" in wanted else wanted
     with jax.enable_x64(True):  # the generated code and the self-check run in float64
-        _generate(model, _merge(targets) or ("jax",), "all" if wanted and "all" in wanted else wanted, out, check, force)
+        _generate(model, _merge(targets) or ("jax",), wanted, out, check, force)
 
 
 def _generate(model, targets, wanted, out, check, force) -> None:
