@@ -20,7 +20,9 @@ from .apps._identification import (
     WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
 )
 from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor
-from .description._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
+from .description._yaml_schema import DescriptionExtras, parse_description, read_description, read_extras
+from .description._yaml_writer import robot_to_dict, write_description
+from .description._report import describe, draw_tree
 
 __version__ = "0.1.0"
 
@@ -55,6 +57,8 @@ __all__ = [
     "read_extras",
     "robot_to_dict",
     "write_description",
+    "describe",
+    "draw_tree",
     "pose_xyzrpy",
     "rot_axis_angle",
     "rot_quaternion",

@@ -33,7 +33,7 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **
 
         return read_urdf(p, lock=lock, **options)
     if ext in (".yaml", ".yml", ".json"):
-        from .description._yaml import read_description
+        from .description._yaml_schema import read_description
 
         if options:
             raise ModelError(f"unknown option(s) {', '.join(options)} for a {ext} file", source=str(p))
@@ -77,7 +77,7 @@ def lower(
             raise RequestError(f"lower: options {options} differ from the equations' {model.options}")
         robot, names, options = model.robot, _derived(model, quantities), model.options
     else:
-        robot = _keep_symbolic(model, symbolic)
+        robot = model if symbolic is None else model.keep_symbolic(symbolic)
         names, options = resolve(robot, quantities), options or Options()
     key = request_key([GENERATOR_VERSION, robot.fingerprint(), repr(names), repr(options),
                        repr(sorted(robot.default_params().items()))])  # the module's METADATA holds the defaults
@@ -125,21 +125,6 @@ def compile_native(
     library = build(layout.stem, header, source, arity, backend or default_backend(), root)
     return NativeDynamics(layout.metadata(), {n: library.functions[c] for n, c in symbols.items()},
                           ffi=library.ffi, path=library.path, source=source, catalogue=tuple(QUANTITIES))
-
-
-def _keep_symbolic(robot: Robot, symbolic: Iterable[str] | None) -> Robot:
-    """``robot`` with every parameter outside ``symbolic`` replaced by its default (None: all stay)."""
-    if symbolic is None:
-        return robot
-    keep = set(symbolic)
-    unknown = keep - set(robot.parameters)
-    if unknown:
-        raise ModelError(
-            f"unknown parameter(s) {', '.join(sorted(unknown))}; parameters are {', '.join(robot.parameters)}",
-            where="symbolic",
-        )
-    fixed = [p for p in robot.parameters if p not in keep]
-    return robot.substitute(fixed) if fixed else robot
 
 
 def _derived(eqs: Equations, quantities: Sequence[str] | str | None) -> tuple[str, ...]:

@@ -50,9 +50,9 @@ class CommaList(click.ParamType):
 
 
 def _quantity_names():
-    from .equations._derive import QUANTITIES
+    import jaxskid
 
-    return tuple(QUANTITIES)
+    return tuple(jaxskid.QUANTITIES)
 
 
 def _merge(values) -> tuple | None:
@@ -161,94 +161,81 @@ def generate(robot, targets, quantities, out, lock, symbolic, check, force):
     """
     import jax
 
-    import jaxskid
-
-    from . import codegen
-    from .equations._derive import resolve
-
-    jax.config.update("jax_enable_x64", True)  # the generated code and the self-check are float64
-
     model = load_robot(robot, lock)
     if symbolic is not None:
-        keep = [s.strip() for s in symbolic.split(",") if s.strip()]
-        unknown = [s for s in keep if s not in model.parameters]
-        if unknown:
-            raise BadInput(f"--symbolic: unknown parameter(s) {', '.join(unknown)}; "
-                           f"{model.name} has {', '.join(model.parameters) or 'none'}")
-        fixed = [p for p in model.parameters if p not in keep]
-        if fixed:
-            model = model.substitute(fixed)
-    targets = _merge(targets) or ("jax",)
+        model = model.keep_symbolic([s.strip() for s in symbolic.split(",") if s.strip()], where="--symbolic")
     wanted = _merge(quantities)
-    if wanted and "all" in wanted:
-        wanted = "all"
-    names = resolve(model, wanted)
-    out_dir = Path(out) if out else Path("generated") / codegen.stem(model.name)
+    wanted = "all" if wanted and "all" in wanted else wanted
+    with jax.enable_x64(True):  # the generated code and the self-check run in float64
+        _generate(model, _merge(targets) or ("jax",), wanted, out, check, force)
+
+
+def _generate(model, targets, wanted, out, check, force) -> None:
+    """Derive once; emit every target's files; lower the same equations for the timing and the self-check;
+    write the files last, all or none."""
+    import jaxskid
 
     t0 = time.perf_counter()
-    eqs = jaxskid.derive(model, names, progress=sys.stderr.isatty())
+    eqs = jaxskid.derive(model, wanted, progress=sys.stderr.isatty())
     t_derive = time.perf_counter() - t0
+    out_dir = Path(out) if out else Path("generated") / jaxskid.codegen.stem(model.name)
     files: dict[str, str] = {}
     for target in targets:
-        files.update(codegen.emit(eqs, target, names))
-    if not force:
-        existing = [str(out_dir / f) for f in files if (out_dir / f).exists()]
-        if existing:
-            raise BadInput(f"{', '.join(existing)} already exist{'s' if len(existing) == 1 else ''}; "
-                           "use --force to overwrite")
+        files.update(jaxskid.codegen.emit(eqs, target))
+    existing = [str(out_dir / f) for f in files if (out_dir / f).exists()]
+    if existing and not force:
+        raise BadInput(f"{', '.join(existing)} already exist{'s' if len(existing) == 1 else ''}; "
+                       "use --force to overwrite")
     t0 = time.perf_counter()
-    dyn = jaxskid.lower(model, names, progress=sys.stderr.isatty())
+    dyn = jaxskid.lower(eqs)
     t_lower = time.perf_counter() - t0
-
     click.echo(f"robot {model.name}: {model.n_dof} joint(s), {len(model.parameters)} symbolic parameter(s)")
     click.echo(f"{'quantity':<22} {'arguments':<22} {'shape':<12} {'operations':>10}")
-    for name in names:
-        q = eqs.quantities[name]
+    for name, q in eqs.quantities.items():
         shape = "(" + ", ".join(map(str, q.shape)) + ("," if len(q.shape) == 1 else "") + ")"
         click.echo(f"{name:<22} {', '.join((*q.args, 'p')):<22} {shape:<12} {eqs.operation_count([name]):>10}")
     defaults_known = set(model.parameters) <= set(model.default_params())
-    t_compile = None
-    if defaults_known:
-        t0 = time.perf_counter()
-        for name in names:
-            args, _ = dyn.signature(name)
-            state = [_zeros(dyn, a) for a in args]
-            out_value = getattr(dyn, name)(*state)
-            for leaf in (out_value.values() if isinstance(out_value, dict) else [out_value]):
-                leaf.block_until_ready()
-        t_compile = time.perf_counter() - t0
-    compile_text = f"{t_compile:.2f} s (jit, first call)" if t_compile is not None else "skipped (parameters without defaults)"
+    compile_text = f"{_first_calls(dyn):.2f} s (jit, first call)" if defaults_known else \
+        "skipped (parameters without defaults)"
     click.echo(f"derive {t_derive:.2f} s, lower {t_lower:.2f} s (JAX module), compile {compile_text}")
-
     if check:
-        if not defaults_known:
-            click.echo("self-check: skipped (some parameters have no default value)")
-        else:
-            from .apps._selfcheck import self_check
-
-            rows = self_check(dyn)
-            if rows:
-                click.echo(f"{'self-check':<44} {'max error':>10} {'tolerance':>10}  result")
-                for row in rows:
-                    click.echo(f"{row.name:<44} {row.error:>10.2e} {row.tolerance:>10.1e}  {'ok' if row.ok else 'FAILED'}")
-            else:
-                click.echo("self-check: nothing to compare for these quantities")
-            failed = [r.name for r in rows if not r.ok]
-            if failed:
-                raise click.ClickException(f"self-check failed: {', '.join(failed)}")
-
-    paths = codegen.write(files, out_dir, force=force)
+        _self_check(dyn, defaults_known)
+    paths = jaxskid.codegen.write(files, out_dir, force=force)
     click.echo(f"wrote {len(paths)} file(s) to {out_dir}:")
     for p in paths:
         click.echo(f"  {p.name}")
 
 
-def _zeros(dyn, arg):
+def _first_calls(dyn) -> float:
+    """Seconds to call every quantity once at zero state (jit compilation, mostly)."""
     import numpy as np
 
-    if arg.startswith("wrench"):
-        return np.zeros((len(dyn.end_effectors), 6))
-    return np.zeros(dyn.n_dof)
+    t0 = time.perf_counter()
+    for name in dyn.quantities:
+        args, _ = dyn.signature(name)
+        state = [np.zeros((len(dyn.end_effectors), 6) if a.startswith("wrench") else dyn.n_dof) for a in args]
+        value = getattr(dyn, name)(*state)
+        for leaf in (value.values() if isinstance(value, dict) else [value]):
+            leaf.block_until_ready()
+    return time.perf_counter() - t0
+
+
+def _self_check(dyn, defaults_known: bool) -> None:
+    if not defaults_known:
+        click.echo("self-check: skipped (some parameters have no default value)")
+        return
+    from .apps._selfcheck import self_check
+
+    rows = self_check(dyn)
+    if not rows:
+        click.echo("self-check: nothing to compare for these quantities")
+        return
+    click.echo(f"{'self-check':<44} {'max error':>10} {'tolerance':>10}  result")
+    for row in rows:
+        click.echo(f"{row.name:<44} {row.error:>10.2e} {row.tolerance:>10.1e}  {'ok' if row.ok else 'FAILED'}")
+    failed = [r.name for r in rows if not r.ok]
+    if failed:
+        raise click.ClickException(f"self-check failed: {', '.join(failed)}")
 
 
 @cli.command()
@@ -270,16 +257,19 @@ def template(structure, output, name, force):
     """
     import re
 
-    from .description._templates import render_template
+    from jaxskid import RequestError
+
+    from .description._templates import check_structure, render_template
 
     suffix = Path(output).suffix.lower()
     fmt = {".yaml": "yaml", ".yml": "yaml", ".json": "json", ".py": "py"}.get(suffix)
     if fmt is None:
         raise click.BadParameter(f"expected a .yaml, .yml, .json or .py file name, got {output!r}",
                                  param_hint="OUTPUT")
-    if not re.fullmatch(r"[RrPp]{1,64}", structure):
-        raise click.BadParameter(f"expected 1 to 64 letters R and P (e.g. RRP), got {structure!r}",
-                                 param_hint="'-S' / '--structure'")
+    try:
+        check_structure(structure)
+    except RequestError as exc:
+        raise click.BadParameter(str(exc), param_hint="'-S' / '--structure'") from None
     if name is None:
         name = re.sub(r"[^A-Za-z0-9_]+", "_", Path(output).stem).strip("_") or "robot"
         if name[0].isdigit():
@@ -321,6 +311,8 @@ def convert(source, output, symbolic_inertia, round_tol, lock, force):
     """
     import jaxskid
 
+    from .description._yaml_writer import round_robot
+
     if Path(output).suffix.lower() not in (".yaml", ".yml", ".json"):
         raise click.BadParameter(f"expected a .yaml, .yml or .json file name, got {output!r}", param_hint="OUTPUT")
     if Path(output).exists() and not force:
@@ -338,44 +330,6 @@ def convert(source, output, symbolic_inertia, round_tol, lock, force):
     click.echo(f"wrote {output}: {robot.name}, {robot.n_dof} joint(s), {len(robot.parameters)} parameter(s)")
 
 
-def round_robot(robot, tol: float):
-    """A copy of ``robot`` with every number within ``tol`` of 0, 1 or -1 (in poses, screws, inertias,
-    gravity and default values) replaced by exactly that."""
-    from dataclasses import replace
-
-    import sympy as sp
-
-    from .model._robot import Robot
-
-    def snap(x: float):
-        for target in (0, 1, -1):
-            if abs(x - target) <= tol:
-                return target
-        return None
-
-    def fix(e):
-        e = sp.sympify(e)
-        subs = {}
-        for f in e.atoms(sp.Float):
-            s = snap(float(f))
-            if s is not None:
-                subs[f] = sp.Integer(s)
-        return e.xreplace(subs) if subs else e
-
-    def fix_matrix(m):
-        return sp.ImmutableMatrix(m.applyfunc(fix))
-
-    joints = [replace(j, origin=fix_matrix(j.origin), screw=tuple(fix(x) for x in j.screw),
-                      inertia=fix_matrix(j.inertia)) for j in robot.joints]
-    frames = [replace(f, offset=fix_matrix(f.offset)) for f in robot.frames]
-    defaults = {}
-    for k, v in robot.defaults:
-        s = snap(v)
-        defaults[k] = float(s) if s is not None else v
-    return Robot.create(robot.name, joints, tuple(fix(g) for g in robot.gravity), frames, robot.end_effectors,
-                        defaults, robot.base)
-
-
 @cli.command()
 @ROBOT
 @LOCK
@@ -387,8 +341,9 @@ def info(robot, lock):
       jaxskid info robots/hopping_leg.yaml
       jaxskid info panda.urdf --lock panda_finger_joint1=0 --lock panda_finger_joint2=0
     """
-    model = load_robot(robot, lock)
-    click.echo(describe(model))
+    import jaxskid
+
+    click.echo(jaxskid.describe(load_robot(robot, lock)))
 
 
 @cli.command()
@@ -410,151 +365,11 @@ def graph(robot, output, lock, force):
                                  param_hint="'-o' / '--output'")
     if Path(output).exists() and not force:
         raise BadInput(f"{output} already exists; use --force to overwrite it")
+    import jaxskid
+
     model = load_robot(robot, lock)
-    draw_tree(model, output)
+    jaxskid.draw_tree(model, output)
     click.echo(f"wrote {output}: kinematic tree of {model.name} ({model.n_dof} joint(s))")
-
-
-# ---------------------------------------------------------------------------------------------- info, graph
-def _tree(robot) -> dict[int, list[tuple[str, int | str]]]:
-    """Children of every body (-1: the base): ("body", index) or ("frame", name), in model order."""
-    children: dict[int, list] = {i: [] for i in range(-1, robot.n_dof)}
-    for i, j in enumerate(robot.joints):
-        children[j.parent].append(("body", i))
-    for f in robot.frames:
-        children[f.body].append(("frame", f.name))
-    return children
-
-
-def _numeric(robot):
-    import sympy as sp
-
-    subs = {sp.Symbol(k, real=True): sp.Float(v) for k, v in robot.default_params().items()}
-
-    def value(e, fmt="{:.6g}"):
-        e = sp.sympify(e).xreplace(subs)
-        if e.free_symbols:
-            return str(e)
-        return fmt.format(float(e))
-
-    return value
-
-
-def _table(header: tuple, rows: list[tuple]) -> list[str]:
-    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
-    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
-    return ["  " + fmt.format(*header).rstrip(), *("  " + fmt.format(*map(str, r)).rstrip() for r in rows)]
-
-
-def describe(robot) -> str:
-    """``jaxskid info``: tables of joints, bodies, frames and parameters, and the kinematic tree."""
-    import sympy as sp
-
-    value = _numeric(robot)
-    gravity = ", ".join(value(g) for g in robot.gravity)
-    lines = [f"robot {robot.name}: {robot.n_dof} joint(s), {len(robot.frames)} extra frame(s), "
-             f"{len(robot.parameters)} parameter(s); base {robot.base!r}; gravity ({gravity})", "", "joints"]
-    rows = []
-    for i, j in enumerate(robot.joints):
-        parent = robot.base if j.parent < 0 else robot.joints[j.parent].link
-        rows.append((i + 1, j.name, j.type, parent, j.link, "(" + ", ".join(value(x, "{:.4g}") for x in j.screw) + ")"))
-    lines += _table(("#", "joint", "type", "parent body", "body", "screw (omega, v), body frame"), rows)
-    lines += ["", "bodies (at the default parameters)"]
-    rows = []
-    for i, j in enumerate(robot.joints):
-        m6 = sp.Matrix(j.inertia)
-        mass = m6[5, 5]
-        com = [m6[2, 4], m6[0, 5], m6[1, 3]]  # m c~ block: (m c)_x = M[2,4], (m c)_y = M[0,5], (m c)_z = M[1,3]
-        com_text = "-" if mass == 0 else "(" + ", ".join(value(c / mass, "{:.4g}") for c in com) + ")"
-        rows.append((i + 1, j.link, value(mass), com_text))
-    lines += _table(("#", "body", "mass", "centre of mass, body frame"), rows)
-    if robot.frames:
-        lines += ["", "frames"]
-        rows = [(f.name, robot.base if f.body < 0 else robot.joints[f.body].link,
-                 "yes" if f.name in robot.end_effectors else "") for f in robot.frames]
-        lines += _table(("frame", "on body", "end-effector"), rows)
-    lines += ["", "parameters"]
-    defaults = robot.default_params()
-    if robot.parameters:
-        lines += _table(("name", "default"), [(p, repr(defaults[p]) if p in defaults else "(none)")
-                                              for p in robot.parameters])
-    else:
-        lines.append("  (none: every value is a number)")
-    lines += ["", "kinematic tree", robot.base]
-    children = _tree(robot)
-
-    def walk(body: int, prefix: str):
-        items = children[body]
-        for k, (kind, ref) in enumerate(items):
-            last = k == len(items) - 1
-            branch = "└── " if last else "├── "
-            if kind == "body":
-                j = robot.joints[ref]
-                lines.append(f"{prefix}{branch}{j.link}  [{j.name}: {j.type}]")
-                walk(ref, prefix + ("    " if last else "│   "))
-            else:
-                tag = "end-effector" if ref in robot.end_effectors else "frame"
-                lines.append(f"{prefix}{branch}{ref}  ({tag})")
-
-    walk(-1, "")
-    return "\n".join(lines)
-
-
-def draw_tree(robot, path) -> None:
-    """``jaxskid graph``: the kinematic tree, laid out top-down (leaves spaced evenly, parents centred)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    children = _tree(robot)
-    pos: dict = {}
-    next_x = [0.0]
-
-    def place(node, depth):
-        kind, ref = node
-        kids = children[ref] if kind == "body" else []
-        if kids:
-            xs = [place(c, depth + 1) for c in kids]
-            x = (xs[0] + xs[-1]) / 2
-        else:
-            x = next_x[0]
-            next_x[0] += 1.0
-        pos[node] = (x, -depth)
-        return x
-
-    root = ("body", -1)
-    place(root, 0)
-    width = max(next_x[0], 1.0)
-    depth = -min(y for _, y in pos.values()) + 1
-    fig, ax = plt.subplots(figsize=(max(4.0, 2.2 * width), max(3.0, 1.3 * depth)))
-    for node, (x, y) in pos.items():
-        kind, ref = node
-        if kind == "body":
-            for child in children[ref]:
-                cx, cy = pos[child]
-                ax.plot([x, cx], [y, cy], color="0.4", lw=1.2, zorder=1,
-                        ls="-" if child[0] == "body" else ":")
-                if child[0] == "body":
-                    j = robot.joints[child[1]]
-                    ax.text(0.35 * x + 0.65 * cx, 0.35 * y + 0.65 * cy, f"{j.name}\n({j.type})", fontsize=7, ha="center",
-                            va="center", color="0.2", bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none"),
-                            zorder=2)
-        if kind == "body":
-            label = robot.base if ref < 0 else robot.joints[ref].link
-            style = dict(boxstyle="round,pad=0.3", fc="#dbe8f6" if ref >= 0 else "#e0e0e0", ec="#3a6ea5")
-        else:
-            label = ref
-            ee = ref in robot.end_effectors
-            style = dict(boxstyle="round,pad=0.25", fc="#fdebd0" if ee else "white", ec="#b9770e", ls="--")
-        ax.text(x, y, label, fontsize=8, ha="center", va="center", bbox=style, zorder=3)
-    ax.set_xlim(-0.8, width - 0.2)
-    ax.set_ylim(-depth + 0.5, 0.6)
-    ax.set_title(f"{robot.name}: kinematic tree ({robot.n_dof} joint(s); dotted: fixed frames)", fontsize=9)
-    ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
 
 
 # ---------------------------------------------------------------------------------------------- entry point

@@ -181,6 +181,14 @@ def test_info_tables_and_tree():
     assert "robot hopping_leg: 2 joint(s)" in locked.stdout
 
 
+def test_reports_are_public_functions(tmp_path):
+    robot = jaxskid.load(LEG, lock={"knee": 0.5})
+    text = jaxskid.describe(robot)
+    assert text.startswith("robot hopping_leg: 2 joint(s)") and "shank  (frame)" in text
+    jaxskid.draw_tree(robot, tmp_path / "leg.svg")
+    assert "<svg" in (tmp_path / "leg.svg").read_text()
+
+
 def test_graph_writes_a_picture(tmp_path):
     svg, png = tmp_path / "tree.svg", tmp_path / "tree.png"
     png.write_text("mine")

@@ -17,6 +17,7 @@ import pytest
 import sympy as sp
 
 import helpers
+import jaxskid
 from jaxskid import ModelError
 from jaxskid.model._lie import STANDARD_PARAMETER_NAMES
 from jaxskid.description._urdf import read_urdf
@@ -176,7 +177,21 @@ def test_branched_tree_walk_and_massless_link():
     assert robot.default_params()["arm_a2_m"] == pytest.approx(0.6, abs=1e-15)
     massless = read_urdf(DATA / "branched.urdf", lock={"j_grip": 0.0}, symbolic_inertia=False)
     assert massless.frame("tool").body == massless.link_names.index("arm_a2")
-    assert set(massless.end_effectors) == {"extra", "sensor", "gripper", "arm_b2"}
+    # the leaf links, except sensor: it is welded to the base, so its Jacobian is zero
+    assert set(massless.end_effectors) == {"extra", "gripper", "arm_b2"}
+
+
+def test_default_end_effectors_leave_out_links_welded_to_the_world():
+    robot = read_urdf(URDFS["ur5"])
+    on_world = {robot.base} | {f.name for f in robot.frames if f.body < 0}
+    assert "base" in on_world  # base_link-base_fixed_joint welds it to the root
+    assert robot.end_effectors and not on_world & set(robot.end_effectors)
+    dyn = jaxskid.lower(robot, ["body_jacobian"])
+    rng = np.random.default_rng(5)
+    jac = np.asarray(dyn.body_jacobian(rng.uniform(-np.pi, np.pi, (8, robot.n_dof))))  # (batch, n_ee, 6, n)
+    assert jac.shape[1] == len(robot.end_effectors)
+    for k, name in enumerate(robot.end_effectors):
+        assert np.abs(jac[:, k]).max() > 0.1, f"{name}: the Jacobian is zero"
 
 
 def test_right_angles_stay_exact():

@@ -1,4 +1,4 @@
-"""The YAML/JSON reader and writer (jaxskid.description._yaml): syntax variants, seed robots, round trips, bad input.
+"""The YAML/JSON reader and writer (jaxskid.description._yaml_*): syntax variants, seed robots, round trips, bad input.
 
 Variants are checked against each other and against hand-computed matrices; the seed robots against
 textbook closed forms through an independent numeric evaluation (body Jacobians built here with numpy).
@@ -17,14 +17,8 @@ import sympy as sp
 import yaml
 
 from jaxskid import Frame, Joint, ModelError, Robot, symbol
-from jaxskid.description._yaml import (
-    parse_description,
-    parse_extras,
-    read_description,
-    read_extras,
-    robot_to_dict,
-    write_description,
-)
+from jaxskid.description._yaml_schema import parse_description, parse_extras, read_description, read_extras
+from jaxskid.description._yaml_writer import robot_to_dict, write_description
 
 ROOT = Path(__file__).resolve().parents[1]
 ROBOTS = sorted((ROOT / "robots").glob("*.yaml"))

@@ -18,11 +18,16 @@ FORMATS = ("yaml", "json", "py")
 _STRUCTURE = re.compile(r"[RrPp]{1,64}")
 
 
-def _joints(structure: str) -> list[dict]:
+def check_structure(structure: str) -> None:
+    """Raise :class:`RequestError` unless ``structure`` is 1 to 64 letters R and P."""
     if not isinstance(structure, str) or not _STRUCTURE.fullmatch(structure):
         raise RequestError(
-            f"expected a structure of 1 to 64 letters R (revolute) and P (prismatic), such as RRP, got {structure!r}"
+            f"expected 1 to 64 letters R and P (R revolute, P prismatic), such as RRP, got {structure!r}"
         )
+
+
+def _joints(structure: str) -> list[dict]:
+    check_structure(structure)
     out = []
     for i, letter in enumerate(structure.upper()):
         k = i + 1

@@ -12,9 +12,10 @@ Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/par
   (prismatic), ``a`` the joint axis normalised to unit length;
 * the order of ``q`` is a depth-first walk from the root in which the joints leaving a link are taken in
   the order of their names, as urdfdom stores them (a ``std::map``); fixed joints are walked through;
-* fixed and locked links are welded to their parent body: their inertia is added to it (in float64, here)
-  and they stay reachable as :class:`Frame` s (:meth:`Robot.create`); with ``symbolic_inertia`` the 10
-  parameters describe the merged body;
+* fixed and locked links are welded to their parent body (:func:`jaxskid.model._fixed.merge_fixed`, on
+  the numeric inertias): their inertia is added to it and they stay reachable as :class:`Frame` s; with
+  ``symbolic_inertia`` the 10 parameters describe the merged body;
+* the default end-effectors are the leaf links, except those welded to the world;
 * a link without ``<inertial>`` is massless;
 * a ``<mimic>`` joint is read as an independent joint, as Pinocchio does by default (``mimic=False``);
   a warning is logged, and locking it removes it.
@@ -28,13 +29,17 @@ import math
 import os
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 import sympy as sp
 
-from ..model import _lie as lie
 from .._errors import ModelError
+from ..model import _lie as lie
+from ..model._fixed import lock_joint, merge_fixed
 from ..model._robot import Joint, Robot, symbol
+from ..model._validate import check_mass, check_positive_semidefinite
+from ._keymap import KeyMap
 
 _logger = logging.getLogger(__name__)
 
@@ -62,7 +67,8 @@ def read_urdf(
             ``toDynamicParameters`` order; ``link`` made a valid identifier), with the URDF values (after
             fixed and locked links are merged in) as defaults. If False, inertias are numbers.
         gravity: gravitational acceleration in the world (root link) frame.
-        end_effectors: link names marked as end-effectors; default: the leaf links of the tree.
+        end_effectors: link names marked as end-effectors; default: the leaf links of the tree, except
+            those welded to the world (their Jacobian is zero).
 
     Returns:
         the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints not locked.
@@ -86,45 +92,65 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors) -> Robot:
     order, root_link = _walk_tree(urdf.links, urdf.joints)
     links = {link.name: link for link in urdf.links}
     locked = _check_lock(lock, order)
-    end_effectors = _check_end_effectors(end_effectors, links, root_link, order)
+    requested = _check_end_effectors(end_effectors, links)
+    # Weld fixed (and locked) links into their parent body first, with numeric inertias, so that with
+    # symbolic_inertia the 10 parameters of each moving body describe the merged body.
+    joints, frames = merge_fixed(_joints(source, order, links, locked), [])
+    joints, defaults = _inertial_parameters(joints, symbolic_inertia)
+    if requested is None:
+        requested = _default_end_effectors(order, frames)
+    keys = KeyMap({"end_effectors": "end_effectors", "gravity": "gravity"})
+    for k, j in enumerate(joints):
+        for part, key in (("origin", "origin"), ("screw", "axis"), ("name", "name"), ("link", "child")):
+            keys.add(f"joints[{k}].{part}", f"joint[name={j.name}].{key}")
+        keys.add(f"joints[{k}].inertia", f"link[name={j.link}].inertial")
+    for k, f in enumerate(frames):
+        keys.add(f"frames[{k}]", f"link[name={f.name}]")
+    try:
+        return Robot.create(urdf.name, joints, gravity, frames, requested, defaults, base=root_link)
+    except ModelError as err:
+        raise keys.relocate(err) from None
 
-    body = {root_link: -1}
-    parent, kind, origin, screw, inertia = [], [], [], [], []
+
+def _joints(source, order, links, locked) -> list[Joint]:
+    """The URDF joints in the order of the walk, locked ones fixed at their position."""
+    body = {order[0].parent: -1} if order else {}
+    joints = []
     for k, j in enumerate(order):
         body[j.child] = k
-        parent.append(body[j.parent])
-        kind.append(_JOINT_TYPES[j.type])
-        screw.append(_screw(kind[k], j.axis))
-        origin.append(_pose(j.origin))
-        inertia.append(_inertia(links[j.child].inertial))
-        if j.name in locked:  # as Robot.lock: B <- B exp(X q)
-            origin[k] = sp.ImmutableMatrix(origin[k] * lie.screw_exp(screw[k], _exact(locked[j.name])))
-            kind[k], screw[k] = "fixed", (0,) * 6
+        kind = _JOINT_TYPES[j.type]
+        m6 = _inertia(links[j.child].inertial)
+        joint = Joint(j.name, kind, body[j.parent], _pose(j.origin), _screw(kind, j.axis),
+                      sp.ImmutableMatrix(6, 6, [_exact(x) for x in m6.flat]), j.child)
+        if j.name in locked:
+            joint = lock_joint(joint, _exact(locked[j.name]))
         elif j.mimic is not None:
             _logger.warning(
                 "%s: joint[name=%s].mimic: read as an independent joint (its coupling to %r is dropped)",
                 source, j.name, j.mimic.joint,
             )
+        joints.append(joint)
+    return joints
 
-    # Weld fixed (and locked) links into their parent body here, in float64, children before parents, so
-    # that Robot.create only re-attaches frames: its exact symmetry check rejects the round-off that
-    # merging numeric inertias symbolically (transform_inertia on Floats) leaves behind.
-    for k in reversed(range(len(order))):
-        if kind[k] == "fixed":
-            if parent[k] >= 0:
-                moved = np.array(lie.transform_inertia(sp.Matrix(inertia[k]), origin[k]), dtype=float)
-                inertia[parent[k]] = inertia[parent[k]] + 0.5 * (moved + moved.T)
-            inertia[k] = np.zeros((6, 6))
 
-    joints, defaults, owner = [], {}, {}
-    for k, j in enumerate(order):
-        m6 = sp.ImmutableMatrix(6, 6, [_exact(x) for x in inertia[k].flat])
-        if symbolic_inertia and kind[k] != "fixed":
-            names = _parameter_names(j.child, owner)
-            defaults.update({n: float(v) for n, v in zip(names, lie.standard_parameters(m6))})
-            m6 = _inertia_from_parameters(*(symbol(n) for n in names))
-        joints.append(Joint(j.name, kind[k], parent[k], origin[k], screw[k], m6, j.child))
-    return Robot.create(urdf.name, joints, gravity, end_effectors=end_effectors, defaults=defaults, base=root_link)
+def _inertial_parameters(joints: list[Joint], symbolic: bool) -> tuple[list[Joint], dict[str, float]]:
+    """With ``symbolic``, every body's inertia written with its 10 standard parameters, whose values
+    become the defaults; else the joints as they are."""
+    if not symbolic:
+        return joints, {}
+    out, defaults, owner = [], {}, {}
+    for j in joints:
+        names = _parameter_names(j.link, owner)
+        defaults.update({n: float(v) for n, v in zip(names, lie.standard_parameters(j.inertia))})
+        out.append(replace(j, inertia=lie.inertia_from_parameters(*(symbol(n) for n in names))))
+    return out, defaults
+
+
+def _default_end_effectors(order, frames) -> tuple[str, ...]:
+    """The leaf links, in the order of the walk, except those welded to the world (their Jacobian is zero)."""
+    parents = {j.parent for j in order}
+    on_world = {f.name for f in frames if f.body < 0}
+    return tuple(j.child for j in order if j.child not in parents and j.child not in on_world)
 
 
 def _check_lock(lock, order) -> dict[str, float]:
@@ -146,10 +172,9 @@ def _check_lock(lock, order) -> dict[str, float]:
     return out
 
 
-def _check_end_effectors(end_effectors, links, root_link, order) -> tuple[str, ...]:
-    if end_effectors is None:  # the leaf links, in the order of the walk
-        parents = {j.parent for j in order}
-        return tuple(name for name in [root_link, *(j.child for j in order)] if name not in parents)
+def _check_end_effectors(end_effectors, links) -> tuple[str, ...] | None:
+    if end_effectors is None:
+        return None
     end_effectors = (end_effectors,) if isinstance(end_effectors, str) else tuple(end_effectors)
     unknown = [e for e in end_effectors if e not in links]
     if unknown:
@@ -294,8 +319,7 @@ def _check_inertial(el, where: str) -> None:
     if mass is None:
         raise ModelError('expected a <mass value="..."/> element', where=f"{where}.mass")
     (m,) = _floats(mass.get("value"), 1, f"{where}.mass")
-    if m < 0:
-        raise ModelError(f"expected a non-negative mass, got {m:g}", where=f"{where}.mass")
+    check_mass(m, f"{where}.mass")
     inertia = el.find("inertia")
     if inertia is None:
         raise ModelError(
@@ -304,13 +328,8 @@ def _check_inertial(el, where: str) -> None:
         )
     ixx, ixy, ixz, iyy, iyz, izz = (_floats(inertia.get(k), 1, f"{where}.inertia.{k}")[0] for k in _INERTIA_KEYS)
     ic = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    ev = np.linalg.eigvalsh(ic)
-    if ev.min() < -1e-9 * max(1.0, float(np.abs(ic).max())):  # the tolerance of Robot.create
-        raise ModelError(
-            f"expected a positive semi-definite inertia about the centre of mass, got eigenvalues "
-            f"{np.round(ev, 12).tolist()}",
-            where=f"{where}.inertia",
-        )
+    check_positive_semidefinite(ic, max(1.0, float(np.abs(ic).max())), f"{where}.inertia",
+                                "positive semi-definite inertia about the centre of mass")
 
 
 def _check_origin(el, where: str) -> None:
@@ -421,13 +440,6 @@ def _inertia(inertial) -> np.ndarray:
     ic = r @ np.asarray(inertial.inertia, dtype=float) @ r.T
     m6 = np.array(lie.spatial_inertia(float(inertial.mass or 0.0), c.tolist(), sp.Matrix(ic)), dtype=float)
     return 0.5 * (m6 + m6.T)  # float round-off in the products breaks exact symmetry
-
-
-def _inertia_from_parameters(m, mcx, mcy, mcz, ixx, ixy, iyy, ixz, iyz, izz) -> sp.ImmutableMatrix:
-    """Inverse of :func:`_lie.standard_parameters`: ``[[I_o, (mc)~], [-(mc)~, m 1]]``."""
-    io = sp.Matrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    mc = lie.skew([mcx, mcy, mcz])
-    return sp.ImmutableMatrix(io.row_join(mc).col_join((-mc).row_join(m * sp.eye(3))))
 
 
 def _parameter_names(link: str, owner: dict[str, str]) -> list[str]:

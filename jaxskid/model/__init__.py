@@ -1,1 +1,32 @@
-"""The robot model: an immutable tree of joints and bodies with symbolic inertial parameters."""
+"""The robot model: an immutable tree of joints and bodies with symbolic inertial parameters.
+
+:class:`Robot` (``_robot``) is built from :class:`Joint` s and :class:`Frame` s (``_joint``) and validated in
+one place (``_validate``); fixed joints are locked and welded by ``_fixed``; ``_lie`` holds the SymPy
+spatial matrices and ``_parameters`` the rule that maps a user's parameters onto a model's.
+
+The names below are imported on first use: ``_parameters`` is sympy-free and serves the runtime, which
+must not import SymPy by importing this package.
+"""
+
+from importlib import import_module
+
+_EXPORTS = {
+    "Frame": "_joint",
+    "Joint": "_joint",
+    "JOINT_TYPES": "_robot",
+    "ParameterLayout": "_parameters",
+    "Robot": "_robot",
+    "lock_joint": "_fixed",
+    "merge_fixed": "_fixed",
+    "spatial_to_body": "_robot",
+    "symbol": "_validate",
+    "to_expr": "_validate",
+    "validate": "_validate",
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(import_module(f"{__name__}.{_EXPORTS[name]}"), name)

@@ -158,13 +158,38 @@ def inertia_matrix(inertia) -> sp.Matrix:
 
 
 def transform_inertia(m6: sp.Matrix, c: sp.Matrix) -> Matrix:
-    """Mass-inertia of a body whose frame has pose ``c`` in a frame F, re-expressed in F.
+    """Mass-inertia of a body whose frame has pose ``c = (R, p)`` in a frame F, re-expressed in F.
 
-    ``M_F = Ad(C^-1)^T M Ad(C^-1)``.
+    This is ``M_F = Ad(C^-1)^T M Ad(C^-1)`` (Lynch & Park 2017, eq. 8.42, in (omega, v) order), written
+    with the standard parameters so that the result keeps the exact structure ``[[I_o, h~], [-h~, m 1]]``
+    whatever the round-off in ``R``: ``m`` stays, the first moment becomes ``h_F = R h + m p``, and the
+    rotational inertia about F's origin is ``I_F = R I_o R^T - (R h)~ p~ - p~ (R h)~ - m p~ p~`` (the
+    parallel-axis theorem with ``c_F = R c + p``).
     """
-    a = adjoint(inverse(c))
-    out = a.T * sp.Matrix(m6) * a
-    return Matrix((out + out.T) / 2)
+    m6 = sp.Matrix(m6)
+    r, p = rotation_of(c), translation_of(c)
+    m = m6[5, 5]
+    rh = r * sp.Matrix(unskew(m6[:3, 3:]))
+    px, rhx = skew(p), skew(rh)
+    i_f = r * m6[:3, :3] * r.T - rhx * px - px * rhx - m * px * px
+    return inertia_from_parameters(m, *(rh + m * p), *_upper(i_f))
+
+
+def _upper(i3: sp.Matrix) -> tuple:
+    """(Ixx, Ixy, Iyy, Ixz, Iyz, Izz) of a 3x3 inertia, each off-diagonal entry averaged with its mirror."""
+    def mean(a, b):
+        return a if a == b else (a + b) / 2
+
+    return (i3[0, 0], mean(i3[0, 1], i3[1, 0]), i3[1, 1], mean(i3[0, 2], i3[2, 0]), mean(i3[1, 2], i3[2, 1]),
+            i3[2, 2])
+
+
+def inertia_from_parameters(m, mcx, mcy, mcz, ixx, ixy, iyy, ixz, iyz, izz) -> Matrix:
+    """The 6x6 mass-inertia ``[[I_o, (mc)~], [-(mc)~, m 1]]`` of the 10 standard parameters, in the order of
+    :data:`STANDARD_PARAMETER_NAMES` (the inverse of :func:`standard_parameters`)."""
+    io = sp.Matrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    mc = skew([mcx, mcy, mcz])
+    return Matrix(io.row_join(mc).col_join((-mc).row_join(m * sp.eye(3))))
 
 
 def standard_parameters(m6: sp.Matrix) -> tuple:

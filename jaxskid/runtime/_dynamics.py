@@ -106,7 +106,7 @@ class Dynamics:
         """The generated function for one state, ``f(*state, p)`` with ``p`` a parameter vector.
 
         ``batched=True`` gives the form to map with ``jax.vmap`` (its inputs are broadcast to the output's
-        shape so that XLA makes one kernel of a batch; see :mod:`jaxskid.lowering._jax`); ``batched=False`` the
+        shape so that XLA makes one kernel of a batch; see :mod:`jaxskid.codegen._jax`); ``batched=False`` the
         same program on unbroadcast values, for a single state (XLA makes nothing better of the broadcast
         there, and on the closed-form forward dynamics its simplifier loops over it).
         """

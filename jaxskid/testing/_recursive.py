@@ -7,7 +7,7 @@ Algorithms", 2008, Alg. 5.1) and the composite-rigid-body algorithm for ``M`` (A
 representation of :mod:`jaxskid.model._robot` (Müller 2018, sec. 3). The loop over the tree is unrolled in Python
 (the topology is static), so XLA sees straight-line code of 3x3 and 6x6 products.
 
-It is a lowering of the model, as :mod:`jaxskid.lowering._jax` is: the robot's joint origins, screws, 6x6
+It is a lowering of the model, as :mod:`jaxskid.codegen._jax` is: the robot's joint origins, screws, 6x6
 inertias and gravity are lambdified to JAX functions of the parameter vector (the order of
 ``Robot.parameters``, the same vector the closed form takes), so both evaluations take the same inputs.
 """

@@ -1,0 +1,445 @@
+"""Robot descriptions in Skidy's YAML/JSON schema: from a loaded mapping to a :class:`Robot`.
+
+The schema is Skidy's (dfki-ric-underactuated-lab/skidy: README "YAML and JSON", ``src/skidy/parser.py``,
+``src/skidy/matrices.py``); every Skidy key is read, and a few optional jaxskid keys are added.
+
+Skidy keys
+    ``joint_screw_coord`` (required): per joint, a 6-vector ``(omega, v)`` or ``{type, axis, vec}`` with
+    ``v = vec x axis`` (``vec`` is a point on a revolute axis; prismatic joints take no ``vec``).
+    ``body_ref_config`` (required): per body, a 4x4 matrix, ``{xyzrpy: [x, y, z, r, p, y]}`` or
+    ``{rotation, translation}`` (either may be left out); ``rotation`` is a 3x3 matrix, ``{Q: [w, x, y, z]}``,
+    ``{rpy: [r, p, y]}`` (R = Rz(y) Ry(p) Rx(r)) or ``{axis, angle}``.
+    ``representation``: ``spatial`` (default: screws in world coordinates, each body's world pose at q = 0)
+    or ``body_fixed`` (screws in the body's frame, each body's pose in its parent's frame).
+    ``ee``: one pose or a list of poses, each relative to the frame of its ``ee_parent`` body in either
+    representation (Skidy: ``FK[ee_parent] * ee``). ``ee_parent``: a 1-based body index (0 = world) or a
+    list of them; default: the last body.
+    ``mass_inertia`` (required): per body, a 6x6 matrix ``[[I_o, m c~], [-m c~, m 1]]`` or
+    ``{mass, inertia, com, frame}``. ``inertia`` is a 3x3 matrix, six values (Ixx, Ixy, Ixz, Iyy, Iyz, Izz),
+    ``{Ixx: .., Iyz: ..}`` (missing entries are 0), a scalar (times the identity) or ``{index, pointmass}``
+    (symbols Ixx<index>.. or I<index> times the identity). ``frame: body`` (the default, as Skidy's
+    ``mass_matrix_mixed_data``) means the inertia is about the body frame's origin; ``frame: com`` means
+    it is about the centre of mass (the parallel-axis theorem moves it, as ``mass_matrix_URDF_data``).
+    ``parent`` (1-based, 0 = world; each parent must come before its child), ``support`` (root-to-body
+    paths) and ``child``: the tree; ``support`` and ``child`` are checked against ``parent``.
+    ``gravity`` (or ``gravity_vector``, required): see below.
+    ``q``, ``qd``, ``q2d``, ``q3d``, ``q4d``: symbol names; the ``q`` names become the joint names.
+    ``WEE``, ``WDEE``, ``W2DEE``: end-effector wrenches and their time derivatives (:func:`read_extras`).
+    ``assignments``: parameter name -> number (an expression of numbers such as ``pi/2`` is allowed).
+
+jaxskid keys
+    ``name`` (default: the file stem), ``base`` (the world link's name, default ``world``),
+    ``joint_names``, ``link_names`` (default ``link1``..), ``ee_names`` (default ``ee`` or ``ee1``..),
+    ``frames: [{name, parent, pose}]`` (named frames that are not end-effectors, ``parent`` as
+    ``ee_parent``), ``frame_order`` (the order of all named frames, written only when it is not
+    end-effectors first), ``lock`` (joint name -> position, see :meth:`Robot.lock`).
+
+Gravity. Skidy builds the base acceleration as ``Vd_0 = (0, -gravity_vector)`` and adds
+``Q_grav = J^T Mb U Vd_0`` to ``M q2d + C qd`` (``src/skidy/kinematics_generator.py``), and its templates and
+tutorial write ``gravity: [0, 0, -g]`` "in negative z0-direction". So ``gravity`` is the physical
+gravitational acceleration, the same convention as :attr:`Robot.gravity`, and it is taken as it is. (Skidy
+releases before that change used ``Vd_0 = (0, gravity_vector)`` and wrote ``[0, 0, g]``; such files must
+flip the sign.)
+
+Validation. This module checks the schema: keys, types, sizes, names and the 1-based tree. The model
+validates the robot (:meth:`Robot.create`); its errors, which name the model's paths (``joints[1].inertia``),
+are mapped back to the description's keys (``mass_inertia[1]``) by :class:`KeyMap`. Strings are parsed by
+:func:`jaxskid.model._validate.to_expr`; decimal literals become double-precision floats.
+"""
+
+from __future__ import annotations
+
+import keyword
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from .._errors import ModelError
+from ..model._robot import Frame, Joint, Robot, spatial_to_body
+from ..model._validate import check_parents, describe
+from ._keymap import KeyMap
+from ._yaml_file import load_mapping
+from ._yaml_values import ValueReader
+
+_SKIDY_KEYS = (
+    "joint_screw_coord", "body_ref_config", "representation", "ee", "ee_parent", "mass_inertia", "parent",
+    "support", "child", "gravity", "gravity_vector", "q", "qd", "q2d", "q3d", "q4d", "WEE", "WDEE", "W2DEE",
+    "assignments",
+)
+_JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock")
+_DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
+_WRENCHES = ("WEE", "WDEE", "W2DEE")
+
+
+@dataclass(frozen=True)
+class DescriptionExtras:
+    """What a description gives beyond the :class:`Robot`: symbol names and end-effector wrenches.
+
+    ``q``..``q4d``: the names of the joint positions and their time derivatives (n each; Skidy's defaults
+    ``d<q>``, ``dd<q>``.. when absent). ``wrench``, ``wrench_d``, ``wrench_2d``: one 6-vector
+    ``(moment, force)`` per end-effector (``WEE``, ``WDEE``, ``W2DEE``; zeros when absent), acting on the
+    end-effector's parent body in that body's frame, as in Skidy: ``Q = M q2d + C qd + Q_grav + J_p^T W``.
+    """
+
+    q: tuple[str, ...]
+    qd: tuple[str, ...]
+    q2d: tuple[str, ...]
+    q3d: tuple[str, ...]
+    q4d: tuple[str, ...]
+    end_effectors: tuple[str, ...]
+    wrench: tuple[tuple[sp.Expr, ...], ...]
+    wrench_d: tuple[tuple[sp.Expr, ...], ...]
+    wrench_2d: tuple[tuple[sp.Expr, ...], ...]
+
+
+# ---------------------------------------------------------------------------------------------- entry points
+def read_description(path, *, lock: Mapping[str, float] | None = None) -> Robot:
+    """The robot described by a ``.yaml``, ``.yml`` or ``.json`` file in Skidy's schema.
+
+    ``lock`` (joint name -> position) is merged over the file's own ``lock`` key. Every problem with the
+    file raises :class:`ModelError` naming the file, the key path and what was expected.
+    """
+    path = Path(path)
+    return parse_description(load_mapping(path), source=str(path), lock=lock)
+
+
+def parse_description(data: Mapping, *, source: str = "<dict>", lock: Mapping[str, float] | None = None) -> Robot:
+    """The robot described by an already loaded mapping; ``source`` names it in error messages."""
+    parsed = _parse(data, source)
+    try:
+        robot = Robot.create(**parsed.arguments)
+        locked = {**parsed.lock, **(lock or {})}
+        return robot.lock(locked) if locked else robot
+    except ModelError as exc:
+        raise parsed.keys.relocate(exc).located(source=source) from None
+    except (ArithmeticError, np.linalg.LinAlgError) as exc:  # numeric checks on extreme default values
+        raise ModelError(f"cannot check the model numerically with the default values ({exc})", source=source) from None
+
+
+def read_extras(path) -> DescriptionExtras:
+    """The symbol names and end-effector wrenches of a description file (see :class:`DescriptionExtras`)."""
+    path = Path(path)
+    return parse_extras(load_mapping(path), source=str(path))
+
+
+def parse_extras(data: Mapping, *, source: str = "<dict>") -> DescriptionExtras:
+    """:func:`read_extras` for an already loaded mapping; the whole description is validated."""
+    parsed = _parse(data, source)
+    try:
+        Robot.create(**parsed.arguments)
+    except ModelError as exc:
+        raise parsed.keys.relocate(exc).located(source=source) from None
+    return parsed.extras
+
+
+def _parse(data, source: str) -> "_Parsed":
+    try:
+        return _Parser(data, source).parse()
+    except ModelError as exc:
+        raise exc.located(source=source) from None
+
+
+@dataclass(frozen=True)
+class _Parsed:
+    arguments: dict  # the arguments of Robot.create
+    lock: dict
+    extras: DescriptionExtras
+    keys: KeyMap
+
+
+class _Parser(ValueReader):
+    """One pass over a description mapping; every check reports the key path of what it reads."""
+
+    def __init__(self, data, source: str):
+        super().__init__()
+        self.data = data
+        self.source = source
+        self.keys = KeyMap({"defaults": "assignments", "end_effectors": "ee_names"})
+
+    def parse(self) -> _Parsed:
+        d = self.data
+        n = self.check_keys()
+        names = {key: self.names(key, n, identifiers=True) for key in _DERIVATIVES}
+        joint_names = self.names("joint_names", n, identifiers=False)
+        joint_key = "joint_names" if joint_names else "q"
+        joint_names = joint_names or names["q"] or [f"q{i + 1}" for i in range(n)]
+        for key, values in [*names.items(), (joint_key, joint_names)]:
+            for i, v in enumerate(values or ()):
+                self.reserved.setdefault(v, f"{key}[{i}]")
+        link_names = self.names("link_names", n, identifiers=False) or [f"link{i + 1}" for i in range(n)]
+        base = self.name_value(d.get("base", "world"), "base")
+        defaults = self.assignments()
+        gravity = self.gravity()
+        joints = self.joints(n, joint_names, link_names)
+        for i in range(n):
+            self.keys.add(f"joints[{i}].name", f"{joint_key}[{i}]")
+            self.keys.add(f"joints[{i}].link", f"link_names[{i}]")
+        frames, ees = self.frames(n, link_names, base)
+        extras = self.extras(names, joint_names, ees)
+        name = self.name_value(d.get("name", _default_name(self.source)), "name")
+        arguments = dict(name=name, joints=joints, gravity=gravity, frames=frames, end_effectors=ees,
+                         defaults=defaults, base=base)
+        return _Parsed(arguments, self.lock(), extras, self.keys)
+
+    def check_keys(self) -> int:
+        """The top level's keys; returns the number of joints."""
+        d = self.data
+        if not isinstance(d, Mapping):
+            raise self.error(None, f"expected a mapping of keys at the top level, got {describe(d)}")
+        allowed = _SKIDY_KEYS + _JAXSKID_KEYS
+        for key in d:
+            if key not in allowed:
+                raise self.error(None, f"unknown key {key!r}; expected one of {', '.join(allowed)}")
+        for key in ("joint_screw_coord", "body_ref_config", "mass_inertia"):
+            if key not in d:
+                raise self.error(key, "required key is missing" + (
+                    " (the 6x6 mass-inertia matrix of every body; jaxskid does not assume massless bodies)"
+                    if key == "mass_inertia" else ""))
+        screws = d["joint_screw_coord"]
+        if not isinstance(screws, list) or not screws:
+            raise self.error("joint_screw_coord", f"expected a non-empty list (one entry per joint), got {describe(screws)}")
+        return len(screws)
+
+    def joints(self, n, joint_names, link_names) -> list[Joint]:
+        representation = self.data.get("representation", "spatial")
+        if representation not in ("spatial", "body_fixed"):
+            raise self.error("representation", f"expected spatial or body_fixed, got {describe(representation)}")
+        parents = self.tree(n)
+        poses_in = self.entries("body_ref_config", n)
+        inertias_in = self.entries("mass_inertia", n)
+        typed = [self.screw(s, f"joint_screw_coord[{i}]") for i, s in enumerate(self.data["joint_screw_coord"])]
+        poses = [self.pose(p, f"body_ref_config[{i}]") for i, p in enumerate(poses_in)]
+        inertias = [self.mass_inertia(m, f"mass_inertia[{i}]") for i, m in enumerate(inertias_in)]
+        screws = [s for _, s in typed]
+        if representation == "spatial":
+            screws, poses = spatial_to_body(screws, poses, parents)
+        for i in range(n):
+            self.keys.add(f"joints[{i}].screw", f"joint_screw_coord[{i}]")
+            self.keys.add(f"joints[{i}].origin", f"body_ref_config[{i}]{self.rotation_key(poses_in[i])}")
+            self.keys.add(f"joints[{i}].inertia", f"mass_inertia[{i}]")
+        return [Joint(joint_names[i], typed[i][0], parents[i], poses[i], screws[i], inertias[i], link_names[i])
+                for i in range(n)]
+
+    def entries(self, key, n) -> list:
+        value = self.data[key]
+        if not isinstance(value, list):
+            raise self.error(key, f"expected a list with one entry per joint, got {describe(value)}")
+        if len(value) != n:
+            raise self.error(key, f"expected {n} entries (one per joint in joint_screw_coord), got {len(value)}")
+        return value
+
+    def names(self, key, n, *, identifiers) -> list[str] | None:
+        value = self.data.get(key)
+        if value is None:
+            return None
+        if not isinstance(value, list):
+            raise self.error(key, f"expected a list of {n} names, got {describe(value)}")
+        if len(value) != n:
+            raise self.error(key, f"expected {n} names (one per joint in joint_screw_coord), got {len(value)}")
+        for i, v in enumerate(value):
+            self.name_value(v, f"{key}[{i}]")
+            if identifiers and (not v.isidentifier() or keyword.iskeyword(v)):
+                raise self.error(f"{key}[{i}]", f"expected a symbol name (letters, digits, _), got {v!r}")
+            if v in value[:i]:
+                raise self.error(f"{key}[{i}]", f"duplicate name {v!r} (also {key}[{value.index(v)}])")
+        return list(value)
+
+    # ------------------------------------------------------------------ top-level entries
+    def assignments(self) -> dict[str, float]:
+        value = self.data.get("assignments", {})
+        if not isinstance(value, Mapping):
+            raise self.error("assignments", f"expected a mapping of parameter names to numbers, got {describe(value)}")
+        out = {}
+        for key, v in value.items():
+            where = f"assignments.{key}"
+            if not isinstance(key, str) or not key.isidentifier():
+                raise self.error("assignments", f"expected parameter names as keys, got {key!r}")
+            if key in self.reserved:
+                raise self.error(where, f"{key!r} is a joint variable ({self.reserved[key]}); it cannot have a default value")
+            expr = self.scalar(v, where)
+            if expr.free_symbols:
+                raise self.error(where, f"expected a number, got {v!r}, which depends on {', '.join(sorted(map(str, expr.free_symbols)))}")
+            out[key] = float(expr)
+        self.set_defaults(out)
+        return out
+
+    def gravity(self) -> list:
+        d = self.data
+        if "gravity" in d and "gravity_vector" in d:
+            raise self.error("gravity", "give either gravity or gravity_vector, not both")
+        key = "gravity" if "gravity" in d or "gravity_vector" not in d else "gravity_vector"
+        if key not in d:
+            raise self.error("gravity", "required key is missing (the gravitational acceleration in the world frame, "
+                                        "e.g. [0, 0, -g] when z points up)")
+        self.keys.add("gravity", key)
+        return self.vector(d[key], 3, key)
+
+    def tree(self, n) -> list[int]:
+        """0-based parent indices (-1 = world) from ``parent``, or from ``support``, checked for consistency."""
+        d = self.data
+        support = d.get("support")
+        if support is not None:
+            if not isinstance(support, list) or len(support) != n:
+                raise self.error("support", f"expected {n} lists (one per joint), got {describe(support)}")
+            for i, s in enumerate(support):
+                if not isinstance(s, list) or not s or not all(_is_int(b) and 1 <= b <= n for b in s):
+                    raise self.error(f"support[{i}]", f"expected a non-empty list of body indices in 1..{n}, got {describe(s)}")
+                if s[-1] != i + 1:
+                    raise self.error(f"support[{i}]", f"expected the path from the root to body {i + 1}, ending with {i + 1}, got {s}")
+        if "parent" in d:
+            key, given = "parent", d["parent"]
+            if not isinstance(given, list) or len(given) != n:
+                raise self.error("parent", f"expected {n} body indices (one per joint), got {describe(given)}")
+        elif support is not None:
+            key, given = "support", [s[-2] if len(s) > 1 else 0 for s in support]
+        else:
+            key, given = "parent", list(range(n))
+        check_parents(given, first=1, where=lambda i: f"{key}[{i}]", where_all=key)
+        self.check_paths(given, key, support)
+        return [p - 1 for p in given]
+
+    def check_paths(self, given, key, support) -> None:
+        """``support`` and ``child`` against the 1-based parents ``given`` (from ``key``)."""
+        n = len(given)
+        paths = []
+        for i in range(n):
+            path = [i + 1]
+            while given[path[0] - 1] != 0:
+                path.insert(0, given[path[0] - 1])
+            paths.append(path)
+        for i, s in enumerate(support or ()):
+            if s != paths[i]:
+                raise self.error(f"support[{i}]", f"expected {paths[i]} (the bodies from the root to body {i + 1} "
+                                                  f"given by {key}), got {s}")
+        child = self.data.get("child")
+        if child is None:
+            return
+        if not isinstance(child, list) or len(child) != n:
+            raise self.error("child", f"expected {n} lists (one per joint), got {describe(child)}")
+        for i, c in enumerate(child):
+            expected = [k + 1 for k in range(n) if given[k] == i + 1]
+            if not isinstance(c, list) or not all(_is_int(b) for b in c) or sorted(c) != expected:
+                raise self.error(f"child[{i}]", f"expected {expected} (the bodies whose parent is body {i + 1}), "
+                                                f"got {describe(c) if not isinstance(c, list) else c}")
+
+    def frames(self, n, link_names, base) -> tuple[list[Frame], list[str]]:
+        """Named frames (end-effectors first, then ``frames``) and the end-effector names."""
+        ees = self.end_effector_entries(n)
+        bodies = {base: 0, **{nm: i + 1 for i, nm in enumerate(link_names)}}  # 1-based, 0 = world
+        frames, keys = [], []
+        for i, (name, parent, pose, key) in enumerate(ees + self.frame_entries(n)):
+            if i < len(ees) and bodies.get(name) == parent and (pose - sp.eye(4)).is_zero_matrix:
+                continue  # the end-effector is a body's own frame (or the base's)
+            frames.append(Frame(name, parent - 1, sp.ImmutableMatrix(pose)))
+            keys.append(key)
+        order = self.data.get("frame_order")
+        if order is not None:
+            names = [f.name for f in frames]
+            if not isinstance(order, list) or sorted(map(str, order)) != sorted(names) or len(order) != len(names):
+                raise self.error("frame_order", f"expected the names {names} in some order, got {describe(order)}")
+            perm = [names.index(nm) for nm in order]
+            frames, keys = [frames[j] for j in perm], [keys[j] for j in perm]
+        for k, (name_key, pose_key) in enumerate(keys):
+            self.keys.add(f"frames[{k}].name", name_key)
+            self.keys.add(f"frames[{k}].offset", pose_key)
+        return frames, [name for name, *_ in ees]
+
+    def end_effector_entries(self, n) -> list[tuple]:
+        """(name, 1-based parent, pose, (name key, pose key)) of every ``ee``."""
+        d = self.data
+        ee = d.get("ee")
+        if ee is None:
+            for key in ("ee_parent", "ee_names"):
+                if key in d:
+                    raise self.error(key, "given without ee")
+            return []
+        # one pose (a mapping or a 4x4 matrix: Skidy's test) or a list of poses
+        single = isinstance(ee, Mapping) or (isinstance(ee, list) and len(ee) > 0 and isinstance(ee[0], list)
+                                              and len(ee[0]) > 0 and not isinstance(ee[0][0], (list, Mapping)))
+        if not single and not isinstance(ee, list):
+            raise self.error("ee", f"expected a pose or a list of poses, got {describe(ee)}")
+        entries = [ee] if single else ee
+        pose_keys = ["ee"] if single else [f"ee[{i}]" for i in range(len(ee))]
+        poses = [self.pose(p, key) for p, key in zip(entries, pose_keys)]
+        pose_keys = [key + self.rotation_key(p) for p, key in zip(entries, pose_keys)]
+        parents = self.ee_parents(n, len(poses))
+        names = d.get("ee_names")
+        k = len(poses)
+        if names is None:
+            names, name_keys = (["ee"] if k == 1 else [f"ee{i + 1}" for i in range(k)]), ["ee"] * k
+        elif not isinstance(names, list) or len(names) != k:
+            raise self.error("ee_names", f"expected {k} name(s), one per ee, got {describe(names)}")
+        else:
+            name_keys = [f"ee_names[{i}]" for i in range(k)]
+        return [(self.name_value(nm, key), p, pose, (key, pk))
+                for nm, p, pose, key, pk in zip(names, parents, poses, name_keys, pose_keys)]
+
+    def ee_parents(self, n, k) -> list[int]:
+        """The 1-based ``ee_parent`` of each of the ``k`` end-effectors (default: the last body)."""
+        parents = self.data.get("ee_parent", n)
+        if isinstance(parents, list):
+            if len(parents) != k:
+                raise self.error("ee_parent", f"expected {k} body indices (one per ee), got {len(parents)}")
+            keys = [f"ee_parent[{i}]" for i in range(k)]
+        else:
+            parents, keys = [parents] * k, ["ee_parent"] * k
+        for p, key in zip(parents, keys):
+            if not _is_int(p) or not 0 <= p <= n:
+                raise self.error(key, f"expected a body index in 0..{n} (0 is the world), got {describe(p)}")
+        return parents
+
+    def frame_entries(self, n) -> list[tuple]:
+        """(name, 1-based parent, pose, (name key, pose key)) of every entry of ``frames``."""
+        value = self.data.get("frames", [])
+        if not isinstance(value, list):
+            raise self.error("frames", f"expected a list of {{name, parent, pose}}, got {describe(value)}")
+        out = []
+        for i, f in enumerate(value):
+            where = f"frames[{i}]"
+            f = self.mapping(f, where, ("name", "parent", "pose"), required=("name", "parent"))
+            if not _is_int(f["parent"]) or not 0 <= f["parent"] <= n:
+                raise self.error(f"{where}.parent", f"expected a body index in 0..{n} (0 is the world), "
+                                                    f"got {describe(f['parent'])}")
+            pose = self.pose(f["pose"], f"{where}.pose") if "pose" in f else sp.eye(4)
+            keys = (f"{where}.name", f"{where}.pose{self.rotation_key(f.get('pose'))}")
+            out.append((self.name_value(f["name"], f"{where}.name"), f["parent"], pose, keys))
+        return out
+
+    def lock(self) -> dict:
+        value = self.data.get("lock", {})
+        if not isinstance(value, Mapping):
+            raise self.error("lock", f"expected a mapping of joint names to positions, got {describe(value)}")
+        return {str(k): self.scalar(v, f"lock.{k}") for k, v in value.items()}
+
+    def extras(self, names, joint_names, end_effectors) -> DescriptionExtras:
+        q = names["q"] or joint_names
+        derived = {key: tuple(names[key] or ["d" * k + v for v in q]) for k, key in enumerate(_DERIVATIVES)}
+        wrenches = [self.wrenches(key, end_effectors) for key in _WRENCHES]
+        return DescriptionExtras(*(derived[k] for k in _DERIVATIVES), tuple(end_effectors), *wrenches)
+
+    def wrenches(self, key, end_effectors) -> tuple:
+        """One 6-vector per end-effector from ``key``: zeros when absent, one vector broadcast, or one each."""
+        value = self.data.get(key)
+        if value is None:
+            return tuple(tuple(sp.Integer(0) for _ in range(6)) for _ in end_effectors)
+        if not isinstance(value, list) or not value:
+            raise self.error(key, f"expected a 6-vector (moment, force) or one per ee, got {describe(value)}")
+        if isinstance(value[0], list):
+            if len(value) != len(end_effectors):
+                raise self.error(key, f"expected {len(end_effectors)} wrenches (one per ee), got {len(value)}")
+            return tuple(tuple(self.vector(w, 6, f"{key}[{i}]")) for i, w in enumerate(value))
+        w = tuple(self.vector(value, 6, key))
+        if not end_effectors and any(not e.is_zero for e in w):
+            raise self.error(key, "a wrench needs an end-effector, but the description has no ee")
+        return tuple(w for _ in end_effectors)
+
+
+def _default_name(source: str) -> str:
+    return "robot" if source.startswith("<") else Path(source).stem
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
