@@ -122,7 +122,8 @@ def _time_derivatives(k: int) -> tuple[QuantitySpec, ...]:
         QuantitySpec(
             "coriolis_matrix" + suffix, state[: k + 2], _square,
             lambda d: _matrix(sym.coriolis_matrix_derivative(d, k)),
-            f"{dt} C(q, qd)", f"{word} time derivative of the Christoffel-consistent Coriolis matrix of coriolis_matrix.",
+            f"{dt} C(q, qd)",
+            f"{word} time derivative of the Christoffel-consistent Coriolis matrix of coriolis_matrix.",
         ),
         QuantitySpec(
             "gravity_torques" + suffix, state[: k + 1], _vector,

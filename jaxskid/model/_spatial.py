@@ -142,6 +142,45 @@ def inertia_apply(m: Sequence[Sequence], v: Sequence) -> Vec:
     return matvec(m, v)
 
 
+def inertia_parts(m: Sequence[Sequence]) -> tuple:
+    """``(m, h, I)`` of a 6x6 mass-inertia ``[[I, h~], [-h~, m 1]]`` given as rows: the mass, the first
+    moment ``h = m c`` and the rotational inertia about the frame origin (rows)."""
+    return m[5][5], [m[2][4], m[0][5], m[1][3]], [[m[r][c] for c in range(3)] for r in range(3)]
+
+
+def apply_inertia_parts(parts: tuple, x: Sequence) -> Vec:
+    """``M X = (I w + h x v, m v + w x h)`` for ``parts = (m, h, I)`` and a twist ``X = (w, v)``."""
+    m, h, inert = parts
+    w, v = x[:3], x[3:]
+    return [*add(matvec(inert, w), cross(h, v)), *add(scale(v, m), cross(w, h))]
+
+
+_UPPER = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def add_inertia_parts(acc: tuple, r: Sequence[Sequence], p: Sequence, parts: tuple, name: Name = unnamed) -> tuple:
+    """``acc`` plus the inertia ``parts = (m, h, I)`` of a body in the frame of ``C = (R, p)``, moved to the
+    reference frame, all as ``(m, h, I)``: with ``h_R = R h``, the moved inertia is ``(m, h_R + m p,
+    R I R^T + m (|p|^2 1 - p p^T) - (h_R p^T + p h_R^T - 2 (p . h_R) 1))``, the parallel-axis theorem
+    with the centre of mass at ``h_R / m``. The upper triangle of I is computed and mirrored. The hook
+    names ``h_R``, each row of ``R I``, the upper triangle of ``R I R^T``, then ``|p|^2`` and ``p . h_R``.
+    """
+    mass, h, inert = acc
+    mc, hc, ic = parts
+    hr = name(matvec(r, hc))
+    ri = [name(row) for row in matmul(r, ic)]
+    rirt = dict(zip(_UPPER, name([dot(ri[a], r[b]) for a, b in _UPPER])))
+    pp = name([dot(p, p)])[0]
+    ph = name([dot(p, hr)])[0]
+    new = [[None] * 3 for _ in range(3)]
+    for a, b in _UPPER:
+        e = inert[a][b] + rirt[a, b] - mc * p[a] * p[b] - hr[a] * p[b] - p[a] * hr[b]
+        if a == b:
+            e = e + mc * pp + 2 * ph
+        new[a][b] = new[b][a] = e
+    return mass + mc, add(h, hr, scale(p, mc)), new
+
+
 def act_motion(r: Sequence[Sequence], p: Sequence, v: Sequence) -> Vec:
     """``Ad(C) V = (R w, R v + p x R w)``: a twist in the frame of ``C = (R, p)``, in its reference frame."""
     rw = matvec(r, v[:3])

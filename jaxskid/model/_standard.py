@@ -99,7 +99,9 @@ def _affine_system(robot: Robot, exprs: list, unknowns: list) -> tuple[np.ndarra
     return a, b
 
 
-def params_from_standard(robot: Robot, pi: Sequence[float], params: Mapping[str, float] | None = None) -> dict[str, float]:
+def params_from_standard(
+    robot: Robot, pi: Sequence[float], params: Mapping[str, float] | None = None
+) -> dict[str, float]:
     """The robot's own inertial parameters that reproduce the standard parameters ``pi``.
 
     The inverse of :func:`standard_params` where it exists: the parameters that appear only in the

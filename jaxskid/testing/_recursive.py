@@ -166,7 +166,8 @@ class RecursiveDynamics:
 
     # -- the recursions
     def _kinematics(self, q, p):
-        """Relative poses ``(R, p)`` of ``C = B exp(X q)``, screws, inertias (rows) and gravity, as scalars."""
+        """Relative poses ``(R, p)`` of ``C = B exp(X q)``, screws, inertias ``(m, h, I)`` and gravity, as
+        JAX scalars."""
         origins, screws, inertias, gravity = self.model(p)
         poses, xs, ms = [], [], []
         for i in range(self.n_dof):
@@ -176,7 +177,7 @@ class RecursiveDynamics:
             o = origins[i]
             poses.append(sa.compose(_rows(o, 3, 3), [o[k, 3] for k in range(3)], r, pos))
             xs.append(x)
-            ms.append(_rows(inertias[i], 6, 6))
+            ms.append(sa.inertia_parts(_rows(inertias[i], 6, 6)))
         return poses, xs, ms, _vector(gravity, 3)
 
     def _rnea(self, q, qd, qdd, p, *, gravity_on: bool):
@@ -201,9 +202,9 @@ class RecursiveDynamics:
                 a = sa.add(a, sa.scale(x, qdd[i]))
             twists.append(v)
             accels.append(a)
-            f = sa.inertia_apply(inertias[i], a)
+            f = sa.apply_inertia_parts(inertias[i], a)
             if qd is not None:
-                f = sa.add(f, sa.coad_apply(v, sa.inertia_apply(inertias[i], v)))
+                f = sa.add(f, sa.coad_apply(v, sa.apply_inertia_parts(inertias[i], v)))
             wrenches.append(f)
         tau = [None] * n
         for i in reversed(range(n)):
@@ -229,15 +230,14 @@ class RecursiveDynamics:
         """M(q) by the composite-rigid-body algorithm (Featherstone 2008, Alg. 6.2), shape (n, n)."""
         poses, screws, inertias, _ = self._kinematics(q, p)
         n = self.n_dof
-        composite = list(inertias)
+        composite = list(inertias)  # children have larger indices than their parents
         for i in reversed(range(n)):
             parent = self.parents[i]
             if parent >= 0:
-                moved = sa.act_inertia(*poses[i], composite[i])
-                composite[parent] = [sa.add(a, b) for a, b in zip(composite[parent], moved)]
+                composite[parent] = sa.add_inertia_parts(composite[parent], *poses[i], composite[i])
         entries = {}
         for i in range(n):
-            f = sa.inertia_apply(composite[i], screws[i])
+            f = sa.apply_inertia_parts(composite[i], screws[i])
             entries[i, i] = sa.dot(screws[i], f)
             j = i
             while self.parents[j] >= 0:
