@@ -4,7 +4,7 @@
 
 Both routes give dM/dt, dC/dt, dQ_grav/dt, dtau/dt, dQ_ext/dt and their second derivatives:
 
-* ``closed``: jaxskid's recursive closed forms (``jaxskid.symbolic._time_derivatives``, Müller & Kumar 2021): the
+* ``closed``: jaxskid's recursive closed forms (``jaxskid.symbolic``, Müller & Kumar 2021): the
   body-fixed recursions are differentiated, every intermediate named on one tape;
 * ``chain``: the chain rule applied to the straight-line program of M, C, Q_grav, tau and Q_ext, i.e. the
   total time derivative ``d/dt = sum_x (dx/dt) d/dx`` of every assignment in forward mode (``q -> qd ->
@@ -35,11 +35,11 @@ import pinocchio as pin  # noqa: E402
 import sympy as sp  # noqa: E402
 
 import jaxskid  # noqa: E402
-from jaxskid.equations._derive import Equations, Options, Quantity  # noqa: E402
+from jaxskid.equations import Equations, Options, Quantity  # noqa: E402
 from jaxskid.codegen import Layout  # noqa: E402
 from jaxskid.codegen._jax import jax_names, module_source  # noqa: E402
 from jaxskid.lowering._cache import load_module  # noqa: E402
-from jaxskid.symbolic._kinematics import Tape  # noqa: E402
+from jaxskid.symbolic import Tape  # noqa: E402
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {

@@ -3,10 +3,8 @@
 from ._errors import JaxskidError, ModelError, RequestError, ShapeError
 from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
-from .equations._derive import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
-from .symbolic import _time_derivatives as _derivatives  # noqa: F401  (registers the time derivatives and the kinematic set)
-from .symbolic import _forward  # noqa: F401  (registers the closed-form forward dynamics)
-from .symbolic._regressor import params_from_standard, standard_parameter_names, standard_params
+from .model._standard import params_from_standard, standard_parameter_names, standard_params
+from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from .lowering._cache import cache_dir
 from .runtime._dynamics import Dynamics, compiler_options, jit
 from ._api import compile_native, load, lower

@@ -121,13 +121,13 @@ def test_closed_form_forward_dynamics_on_the_tape():
     SymPy (no lowering, no Newton reciprocal), equals Pinocchio's aba on a random tree."""
     import sympy as sp
 
-    from jaxskid.symbolic._forward import forward_dynamics_outputs
-    from jaxskid.symbolic._kinematics import Kinematics, Tape
+    from jaxskid.symbolic import Derivation, Inputs
+    from jaxskid.symbolic import forward_dynamics as forward_dynamics_outputs
 
     rng = np.random.default_rng(14)
     robot = random_robot(rng, 5, tree=True, prismatic=0.3)
     params = robot.default_params()
-    kin = Kinematics(robot, Tape())
+    kin = Derivation(robot, Inputs.of(robot))
     tau_syms = [sp.Symbol(f"_tau{i}", real=True) for i in range(robot.n_dof)]
     outs = forward_dynamics_outputs(kin, tau_syms)
     q, qd, _ = random_states(robot.n_dof, 1, seed=15)

@@ -11,7 +11,7 @@ mass), numeric or as 10 symbolic standard parameters per body. The same robot is
 * dM/dt - 2 C is skew-symmetric, with dM/dt by the complex step (exact to rounding, independent of C);
 * the YAML round trip (write_description, read_description) gives an equal Robot.
 
-The derived program is evaluated with NumPy by ``jaxskid._reference.evaluate`` (nothing compiled), so that a
+The derived program is evaluated with NumPy by ``jaxskid.testing._reference.evaluate`` (nothing compiled), so that a
 few hundred fresh robots take a few minutes; a few examples go through the real JAX lowering, and through the
 numeric recursive evaluation of ``jaxskid.testing._recursive``.
 """

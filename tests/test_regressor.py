@@ -120,6 +120,27 @@ def test_params_from_standard_inverts_standard_params(urdf_robot):
         jaxskid.params_from_standard(point_masses, np.ones(20))
 
 
+def test_standard_parameters_follow_the_parameter_rule(urdf_robot):
+    """Standard parameters are named as the robot's own ({link}_{p}); params follow the one rule: a partial
+    dict takes the defaults for the rest, an unknown name is an error naming the closest valid ones."""
+    robot, _ = urdf_robot("panda")
+    names = jaxskid.standard_parameter_names(robot)
+    assert names[:2] == ("panda_link1_m", "panda_link1_mcx") and len(names) == 10 * robot.n_dof
+    assert set(names) == set(robot.parameters)  # symbolic URDF inertias: the same names, one convention
+    defaults = robot.default_params()
+    partial = {"panda_link3_m": 2.5}
+    np.testing.assert_array_equal(jaxskid.standard_params(robot, partial),
+                                  jaxskid.standard_params(robot, {**defaults, **partial}))
+    np.testing.assert_array_equal(jaxskid.standard_params(robot, [defaults[k] for k in robot.parameters]),
+                                  jaxskid.standard_params(robot))
+    with pytest.raises(jaxskid.RequestError, match="'panda_link3_mass'.*did you mean 'panda_link3_m"):
+        jaxskid.standard_params(robot, {"panda_link3_mass": 2.5})
+    with pytest.raises(jaxskid.RequestError, match="panda_link3_mass"):
+        jaxskid.params_from_standard(robot, jaxskid.standard_params(robot), {"panda_link3_mass": 2.5})
+    with pytest.raises(jaxskid.ShapeError, match="standard_params"):
+        jaxskid.standard_params(robot, np.ones(3))
+
+
 # ------------------------------------------------------------------------------------------ base parameters
 @pytest.mark.parametrize("name", ["panda", "ur5"])
 def test_number_of_base_parameters_matches_pinocchio(urdf_robot, name):

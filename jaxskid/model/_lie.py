@@ -16,13 +16,14 @@ from collections.abc import Sequence
 
 import sympy as sp
 
+from . import _spatial
+
 Matrix = sp.ImmutableMatrix
 
 
 def skew(v: Sequence) -> sp.Matrix:
     """3x3 cross-product matrix: ``skew(a) @ b == a x b``."""
-    x, y, z = v
-    return sp.Matrix([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return sp.Matrix(_spatial.skew(v))
 
 
 def unskew(m: sp.Matrix) -> list:

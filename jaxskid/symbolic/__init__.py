@@ -1,0 +1,75 @@
+"""The symbolic stage: closed-form kinematics and dynamics as a straight-line SymPy program.
+
+A :class:`Derivation` holds the robot, its :class:`Inputs` (the symbols of q, qd, ..., tau, the wrenches
+and the parameters), the :class:`Tape` every intermediate is named on and the memo that lets quantities
+derived together share their work. Each algorithm is a function of the derivation, one per module:
+
+* ``_kinematics``: relative and world poses, body twists and accelerations (:class:`Terms` chooses which);
+* ``_frames``: named frames: poses, motion, hybrid quantities, loads;
+* ``_rnea``: recursive Newton-Euler (tau, C qd, Q_grav, Q_ext);
+* ``_crba``: composite-rigid-body algorithm (M);
+* ``_jacobians``: body, hybrid and system Jacobians and their time derivatives;
+* ``_coriolis``: the Christoffel-consistent Coriolis matrix;
+* ``_time_kinematics`` and ``_time_dynamics``: closed-form time derivatives (Müller & Kumar 2021);
+* ``_regressor``: the inertial-parameter regressor;
+* ``_forward``: forward dynamics by the symbolic sparse ``L^T D L`` of M.
+
+The spatial algebra they share is :mod:`jaxskid.model._spatial`.
+"""
+
+from ._coriolis import coriolis_matrix
+from ._crba import mass_matrix
+from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
+from ._forward import forward_dynamics
+from ._frames import (
+    body_hybrid_acceleration, body_hybrid_twist, frame_hybrid_acceleration, frame_hybrid_twist, frame_motion,
+    frame_pose,
+)
+from ._jacobians import (
+    body_jacobian, body_jacobian_dot, hybrid_jacobian, hybrid_jacobian_dot, system_jacobian, system_jacobian_dot,
+)
+from ._kinematics import Terms, absolute, acceleration, twist
+from ._regressor import N_STANDARD, regressor
+from ._rnea import coriolis_torques, external_torques, gravity_torques, inverse_dynamics
+from ._tape import Tape
+from ._time_dynamics import (
+    coriolis_matrix_derivative, external_torques_derivative, mass_matrix_derivative, newton_euler_derivative,
+)
+
+__all__ = [
+    "N_STANDARD",
+    "STATE_ORDERS",
+    "WRENCH_ORDERS",
+    "Derivation",
+    "Inputs",
+    "Tape",
+    "Terms",
+    "absolute",
+    "acceleration",
+    "body_hybrid_acceleration",
+    "body_hybrid_twist",
+    "body_jacobian",
+    "body_jacobian_dot",
+    "coriolis_matrix",
+    "coriolis_matrix_derivative",
+    "coriolis_torques",
+    "external_torques",
+    "external_torques_derivative",
+    "forward_dynamics",
+    "frame_hybrid_acceleration",
+    "frame_hybrid_twist",
+    "frame_motion",
+    "frame_pose",
+    "gravity_torques",
+    "hybrid_jacobian",
+    "hybrid_jacobian_dot",
+    "inverse_dynamics",
+    "mass_matrix",
+    "mass_matrix_derivative",
+    "memoized",
+    "newton_euler_derivative",
+    "regressor",
+    "system_jacobian",
+    "system_jacobian_dot",
+    "twist",
+]

@@ -1,11 +1,12 @@
 """Numeric recursive dynamics in JAX: the "recursive evaluation" that the closed form is measured against.
 
-The closed form (:mod:`jaxskid.symbolic._kinematics`) runs the Newton-Euler and composite-rigid-body recursions once,
+The closed form (:mod:`jaxskid.symbolic`) runs the Newton-Euler and composite-rigid-body recursions once,
 symbolically, and prints the result. This module runs the same recursions numerically, at every call, in
 JAX: recursive Newton-Euler for ``tau``, ``C(q, qd) qd`` and ``Q_grav`` (Featherstone, "Rigid Body Dynamics
 Algorithms", 2008, Alg. 5.1) and the composite-rigid-body algorithm for ``M`` (Alg. 6.2), in the body-fixed
-representation of :mod:`jaxskid.model._robot` (Müller 2018, sec. 3). The loop over the tree is unrolled in Python
-(the topology is static), so XLA sees straight-line code of 3x3 and 6x6 products.
+representation of :mod:`jaxskid.model._robot` (Müller 2018, sec. 3), with the spatial algebra of
+:mod:`jaxskid.model._spatial` applied to JAX scalars. The loop over the tree is unrolled in Python (the
+topology is static), so XLA sees straight-line scalar code, which it fuses.
 
 It is a lowering of the model, as :mod:`jaxskid.codegen._jax` is: the robot's joint origins, screws, 6x6
 inertias and gravity are lambdified to JAX functions of the parameter vector (the order of
@@ -14,7 +15,7 @@ inertias and gravity are lambdified to JAX functions of the parameter vector (th
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import jax
@@ -22,8 +23,11 @@ import jax.numpy as jnp
 import numpy as np
 import sympy as sp
 
-from .._errors import RequestError, ShapeError
+from .._errors import RequestError
+from ..model import _spatial as sa
+from ..model._parameters import ParameterLayout
 from ..model._robot import Robot, symbol
+from ..runtime._parameters import param_array
 
 _SIGNATURES = {
     "mass_matrix": ("q",),
@@ -113,77 +117,14 @@ def _model_function(robot: Robot) -> _ModelFunction:
                           np.asarray(other_index, dtype=int), other, robot.n_dof)
 
 
-# ---------------------------------------------------------------------------------------------- spatial algebra
-# Small products are written as broadcast multiply + sum: XLA on CPU compiles each tiny ``dot`` separately
-# (tens of milliseconds each), while elementwise code fuses.
-def _mm(a, b):
-    """``a @ b`` for small matrices."""
-    return jnp.sum(a[:, :, None] * b[None, :, :], axis=1)
+# ---------------------------------------------------------------------------------------------- model as scalars
+def _rows(a, n_rows: int, n_cols: int) -> list[list]:
+    """A small array as rows of JAX scalars, the form :mod:`jaxskid.model._spatial` works on."""
+    return [[a[r, c] for c in range(n_cols)] for r in range(n_rows)]
 
 
-def _mv(a, x):
-    """``a @ x`` for a small matrix and a vector."""
-    return jnp.sum(a * x[None, :], axis=1)
-
-
-def _dot(a, b):
-    return jnp.sum(a * b)
-
-
-def _cross(a, b):
-    return jnp.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def _skew(w):
-    z = jnp.zeros((), w.dtype)
-    return jnp.array([[z, -w[2], w[1]], [w[2], z, -w[0]], [-w[1], w[0], z]])
-
-
-def _relative(origin, screw, qi, revolute: bool):
-    """(R, p) of ``C = B exp(X q)`` (Lynch & Park 2017, eq. 3.88)."""
-    w, v = screw[:3], screw[3:]
-    if revolute:
-        wx = _skew(w)
-        s, c = jnp.sin(qi), jnp.cos(qi)
-        re = jnp.eye(3, dtype=qi.dtype) + s * wx + (1 - c) * _mm(wx, wx)
-        wv = _cross(w, v)
-        pe = wv - _mv(re, wv) + w * (_dot(w, v) * qi)
-    else:
-        re = jnp.eye(3, dtype=qi.dtype)
-        pe = v * qi
-    rb, pb = origin[:3, :3], origin[:3, 3]
-    return _mm(rb, re), _mv(rb, pe) + pb
-
-
-def _to_child(r, p, twist):
-    """``Ad(C^-1) V``: a twist in the parent's frame, in the child's frame."""
-    w, v = twist[:3], twist[3:]
-    return jnp.concatenate([_mv(r.T, w), _mv(r.T, v + _cross(w, p))])
-
-
-def _to_parent(r, p, wrench):
-    """``Ad(C^-1)^T F``: a wrench in the child's frame, in the parent's frame."""
-    f = _mv(r, wrench[3:])
-    return jnp.concatenate([_mv(r, wrench[:3]) + _cross(p, f), f])
-
-
-def _ad(twist, x):
-    """``ad(V) X = [V, X]`` for twists (omega, v)."""
-    w, v = twist[:3], twist[3:]
-    return jnp.concatenate([_cross(w, x[:3]), _cross(w, x[3:]) + _cross(v, x[:3])])
-
-
-def _coad(twist, h):
-    """``-ad(V)^T h`` for a momentum wrench h (moment, force)."""
-    w, v = twist[:3], twist[3:]
-    return jnp.concatenate([_cross(w, h[:3]) + _cross(v, h[3:]), _cross(w, h[3:])])
-
-
-def _ad_inverse_matrix(r, p):
-    """The 6x6 ``Ad(C^-1)`` of ``C = (R, p)``."""
-    rt = r.T
-    z = jnp.zeros((3, 3), r.dtype)
-    return jnp.block([[rt, z], [-_mm(rt, _skew(p)), rt]])
+def _vector(a, n: int) -> list:
+    return [a[k] for k in range(n)]
 
 
 # ---------------------------------------------------------------------------------------------- algorithms
@@ -194,11 +135,14 @@ class RecursiveDynamics:
     ``p`` (``(len(parameters),)``); batch with ``jax.vmap``, as :meth:`jaxskid.Dynamics.raw`."""
 
     name: str
-    parameters: tuple[str, ...]
-    defaults: Mapping[str, float]
+    layout: ParameterLayout
     parents: tuple[int, ...]
     revolute: tuple[bool, ...]
     model: _ModelFunction
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        return self.layout.names
 
     @property
     def n_dof(self) -> int:
@@ -209,19 +153,10 @@ class RecursiveDynamics:
         return tuple(_SIGNATURES)
 
     def param_vector(self, params=None, dtype=None) -> jax.Array:
-        """Parameters as a vector in the order of :attr:`parameters` (``None``: the defaults)."""
-        if params is None:
-            missing = [k for k in self.parameters if k not in self.defaults]
-            if missing:
-                raise RequestError(f"parameter(s) {', '.join(missing)} have no default value; pass params")
-            params = self.defaults
-        if isinstance(params, Mapping):
-            vec = jnp.asarray(np.array([params[k] for k in self.parameters], dtype=np.float64))
-        else:
-            vec = jnp.asarray(params)
-            if vec.shape != (len(self.parameters),):
-                raise ShapeError(f"params: expected shape ({len(self.parameters)},), got {vec.shape}")
-        return vec if dtype is None else vec.astype(dtype)
+        """Parameters as an array whose last axis is in the order of :attr:`parameters`: ``None`` for the
+        defaults, a dict name -> value (missing names take their defaults) or an array
+        (:func:`jaxskid.runtime._parameters.param_array`)."""
+        return param_array(self.layout, params, dtype)
 
     def raw(self, name: str) -> Callable:
         """``f(*state, p)`` for one state, as :meth:`jaxskid.Dynamics.raw`."""
@@ -231,48 +166,53 @@ class RecursiveDynamics:
 
     # -- the recursions
     def _kinematics(self, q, p):
+        """Relative poses ``(R, p)`` of ``C = B exp(X q)``, screws, inertias ``(m, h, I)`` and gravity, as
+        JAX scalars."""
         origins, screws, inertias, gravity = self.model(p)
-        poses = [_relative(origins[i], screws[i], q[i], self.revolute[i]) for i in range(self.n_dof)]
-        return poses, screws, inertias, gravity
+        poses, xs, ms = [], [], []
+        for i in range(self.n_dof):
+            x = _vector(screws[i], 6)
+            sin_cos = (jnp.sin(q[i]), jnp.cos(q[i])) if self.revolute[i] else None
+            r, pos = sa.screw_exp(x[:3], x[3:], q[i], sin_cos)
+            o = origins[i]
+            poses.append(sa.compose(_rows(o, 3, 3), [o[k, 3] for k in range(3)], r, pos))
+            xs.append(x)
+            ms.append(sa.inertia_parts(_rows(inertias[i], 6, 6)))
+        return poses, xs, ms, _vector(gravity, 3)
 
     def _rnea(self, q, qd, qdd, p, *, gravity_on: bool):
         """Featherstone (2008) Alg. 5.1 in body-fixed coordinates; ``qd`` or ``qdd`` may be None (zero)."""
         poses, screws, inertias, gravity = self._kinematics(q, p)
         n = self.n_dof
-        dtype = q.dtype
-        zero6 = jnp.zeros(6, dtype)
+        zero6 = [0.0] * 6
         twists, accels, wrenches = [], [], []
         for i in range(n):
-            r, pos = poses[i]
             x = screws[i]
             parent = self.parents[i]
             if parent >= 0:
-                v = _to_child(r, pos, twists[parent])
-                a = _to_child(r, pos, accels[parent])
+                v = sa.act_inv_motion(*poses[i], twists[parent])
+                a = sa.act_inv_motion(*poses[i], accels[parent])
             else:
                 v = zero6
-                base = jnp.concatenate([jnp.zeros(3, dtype), -gravity]) if gravity_on else zero6
-                a = _to_child(r, pos, base)
+                a = sa.act_inv_motion(*poses[i], [0.0, 0.0, 0.0, *(-g for g in gravity)]) if gravity_on else zero6
             if qd is not None:
-                v = v + x * qd[i]
-                a = a + _ad(v, x) * qd[i]
+                v = sa.add(v, sa.scale(x, qd[i]))
+                a = sa.add(a, sa.scale(sa.ad_apply(v, x), qd[i]))
             if qdd is not None:
-                a = a + x * qdd[i]
+                a = sa.add(a, sa.scale(x, qdd[i]))
             twists.append(v)
             accels.append(a)
-            m = inertias[i]
-            f = _mv(m, a)
+            f = sa.apply_inertia_parts(inertias[i], a)
             if qd is not None:
-                f = f + _coad(v, _mv(m, v))
+                f = sa.add(f, sa.coad_apply(v, sa.apply_inertia_parts(inertias[i], v)))
             wrenches.append(f)
         tau = [None] * n
         for i in reversed(range(n)):
-            tau[i] = _dot(screws[i], wrenches[i])
+            tau[i] = sa.dot(screws[i], wrenches[i])
             parent = self.parents[i]
             if parent >= 0:
-                r, pos = poses[i]
-                wrenches[parent] = wrenches[parent] + _to_parent(r, pos, wrenches[i])
-        return jnp.stack(tau)
+                wrenches[parent] = sa.add(wrenches[parent], sa.act_force(*poses[i], wrenches[i]))
+        return jnp.stack([jnp.asarray(t, q.dtype) for t in tau])
 
     def inverse_dynamics(self, q, qd, qdd, p):
         """tau = M(q) qdd + C(q, qd) qd + Q_grav(q), shape (n,)."""
@@ -290,31 +230,30 @@ class RecursiveDynamics:
         """M(q) by the composite-rigid-body algorithm (Featherstone 2008, Alg. 6.2), shape (n, n)."""
         poses, screws, inertias, _ = self._kinematics(q, p)
         n = self.n_dof
-        composite = [inertias[i] for i in range(n)]
+        composite = list(inertias)  # children have larger indices than their parents
         for i in reversed(range(n)):
             parent = self.parents[i]
             if parent >= 0:
-                t = _ad_inverse_matrix(*poses[i])
-                composite[parent] = composite[parent] + _mm(_mm(t.T, composite[i]), t)
+                composite[parent] = sa.add_inertia_parts(composite[parent], *poses[i], composite[i])
         entries = {}
         for i in range(n):
-            f = _mv(composite[i], screws[i])
-            entries[i, i] = _dot(screws[i], f)
+            f = sa.apply_inertia_parts(composite[i], screws[i])
+            entries[i, i] = sa.dot(screws[i], f)
             j = i
             while self.parents[j] >= 0:
-                f = _to_parent(*poses[j], f)
+                f = sa.act_force(*poses[j], f)
                 j = self.parents[j]
-                entries[i, j] = entries[j, i] = _dot(screws[j], f)
+                entries[i, j] = entries[j, i] = sa.dot(screws[j], f)
         zero = jnp.zeros((), q.dtype)
-        return jnp.stack([jnp.stack([entries.get((r, c), zero) for c in range(n)]) for r in range(n)])
+        return jnp.stack([jnp.stack([jnp.asarray(entries.get((r, c), zero), q.dtype) for c in range(n)])
+                          for r in range(n)])
 
 
 def recursive_dynamics(robot: Robot) -> RecursiveDynamics:
     """The numeric recursive evaluation of ``robot``'s M, Q_grav, C qd and tau in JAX."""
     return RecursiveDynamics(
         name=robot.name,
-        parameters=robot.parameters,
-        defaults=robot.default_params(),
+        layout=ParameterLayout(robot.parameters, robot.default_params()),
         parents=robot.parents,
         revolute=tuple(t == "revolute" for t in robot.joint_types),
         model=_model_function(robot),

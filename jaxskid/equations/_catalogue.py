@@ -1,0 +1,287 @@
+"""The catalogue: every quantity jaxskid can derive, declared here and only here, in a fixed order.
+
+The order of :data:`QUANTITIES` is the canonical order of a request (:func:`jaxskid.equations.resolve`),
+and through it part of the cache key of every generated module: append new quantities at the end.
+Each entry names the arguments, the output shape and the builder: a function of a
+:class:`jaxskid.symbolic.Derivation` that returns the outputs, flat and row-major.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from .. import symbolic as sym
+from ..model._robot import Robot
+from ..symbolic import Derivation, Terms
+
+
+@dataclass(frozen=True)
+class QuantitySpec:
+    """How to derive a quantity: arguments, shape and a builder over a :class:`~jaxskid.symbolic.Derivation`."""
+
+    name: str
+    args: tuple[str, ...]
+    shape: Callable[[Robot], tuple[int, ...]]
+    build: Callable[[Derivation], list]
+    equation: str
+    doc: str
+    needs_end_effector: bool = False
+
+
+# ---------------------------------------------------------------------------------------------- builders
+def _flat(rows) -> list:
+    out = []
+    for r in rows:
+        if isinstance(r, (list, tuple)):
+            out.extend(_flat(r))
+        else:
+            out.append(r)
+    return out
+
+
+def _matrix(m) -> list:
+    return _flat(m.tolist())
+
+
+def _pose_entries(r, p) -> list:
+    return [*r[0], p[0], *r[1], p[1], *r[2], p[2], 0, 0, 0, 1]
+
+
+def _bodies(d: Derivation, fn) -> list:
+    """``fn(d, i)`` for every body, stacked."""
+    return _flat([fn(d, i) for i in range(d.n)])
+
+
+def _end_effectors(d: Derivation, fn) -> list:
+    """``fn(d, name)`` for every end-effector, stacked."""
+    return _flat([fn(d, name) for name in d.robot.end_effectors])
+
+
+def _ee_matrices(d: Derivation, fn) -> list:
+    """``fn(d, name)``, n columns of 6, as a 6 x n matrix for every end-effector, stacked."""
+    out = []
+    for name in d.robot.end_effectors:
+        cols = fn(d, name)
+        out.append([[cols[j][k] for j in range(d.n)] for k in range(6)])
+    return _flat(out)
+
+
+def _wrenches(d: Derivation, order: int) -> dict:
+    """The end-effector wrench symbols of a time-derivative order, by end-effector name."""
+    return {name: list(d.inputs.wrenches[order][e]) for e, name in enumerate(d.robot.end_effectors)}
+
+
+# ---------------------------------------------------------------------------------------------- shapes
+def _square(r: Robot) -> tuple[int, ...]:
+    return (r.n_dof, r.n_dof)
+
+
+def _vector(r: Robot) -> tuple[int, ...]:
+    return (r.n_dof,)
+
+
+def _per_body(r: Robot) -> tuple[int, ...]:
+    return (r.n_dof, 6)
+
+
+def _per_ee(r: Robot) -> tuple[int, ...]:
+    return (len(r.end_effectors), 6)
+
+
+def _ee_jacobian(r: Robot) -> tuple[int, ...]:
+    return (len(r.end_effectors), 6, r.n_dof)
+
+
+def _system(r: Robot) -> tuple[int, ...]:
+    return (6 * r.n_dof, r.n_dof)
+
+
+def _poses(r: Robot) -> tuple[int, ...]:
+    return (len(r.frame_names), 4, 4)
+
+
+def _regressor(r: Robot) -> tuple[int, ...]:
+    return (r.n_dof, sym.N_STANDARD * r.n_dof)
+
+
+# ---------------------------------------------------------------------------------------------- time derivatives
+def _time_derivatives(k: int) -> tuple[QuantitySpec, ...]:
+    """The k-th time derivatives (k = 1: ``_dot``, k = 2: ``_ddot``) of M, C, Q_grav, tau and Q_ext."""
+    suffix, word, dt = {1: ("_dot", "First", "d/dt"), 2: ("_ddot", "Second", "d^2/dt^2")}[k]
+    state = ("q", "qd", "qdd", "q3d", "q4d")
+    wrenches = ("wrench", "wrench_d", "wrench_dd")[: k + 1]
+    return (
+        QuantitySpec(
+            "mass_matrix" + suffix, state[: k + 1], _square, lambda d: _matrix(sym.mass_matrix_derivative(d, k)),
+            f"{dt} M(q)",
+            f"{word} time derivative of the mass matrix: composite-rigid-body pass over the derivatives of the "
+            "composite inertias (Müller & Kumar 2021); dM/dt = C + C^T.",
+        ),
+        QuantitySpec(
+            "coriolis_matrix" + suffix, state[: k + 2], _square,
+            lambda d: _matrix(sym.coriolis_matrix_derivative(d, k)),
+            f"{dt} C(q, qd)",
+            f"{word} time derivative of the Christoffel-consistent Coriolis matrix of coriolis_matrix.",
+        ),
+        QuantitySpec(
+            "gravity_torques" + suffix, state[: k + 1], _vector,
+            lambda d: sym.newton_euler_derivative(d, k, Terms.GRAVITY),
+            f"{dt} Q_grav(q)",
+            f"{word} time derivative of the generalized gravity forces (differentiated Newton-Euler pass).",
+        ),
+        QuantitySpec(
+            "inverse_dynamics" + suffix, state[: k + 3], _vector,
+            lambda d: sym.newton_euler_derivative(d, k, Terms.INVERSE_DYNAMICS),
+            f"{dt} tau = {dt} (M qdd + C qd + Q_grav)",
+            f"{word} time derivative of the joint forces along a motion with jerk q3d"
+            + (" and jounce q4d" if k == 2 else "") + " (differentiated Newton-Euler pass).",
+        ),
+        QuantitySpec(
+            "external_torques" + suffix, (*state[: k + 1], *wrenches), _vector,
+            lambda d: sym.external_torques_derivative(d, [_wrenches(d, r) for r in range(k + 1)], k),
+            f"{dt} Q_ext = {dt} sum_e J_e^T W_e",
+            f"{word} time derivative of the generalized end-effector forces, from the wrenches and their "
+            f"time derivatives ({', '.join(wrenches[1:])}), (moment, force) in each end-effector's frame.",
+            needs_end_effector=True,
+        ),
+    )
+
+
+# ---------------------------------------------------------------------------------------------- the catalogue
+_CATALOGUE = (
+    QuantitySpec(
+        "mass_matrix", ("q",), _square, lambda d: _matrix(sym.mass_matrix(d)),
+        "M(q) = J^T diag(M_i) J", "Joint-space mass (inertia) matrix, symmetric positive definite.",
+    ),
+    QuantitySpec(
+        "coriolis_matrix", ("q", "qd"), _square, lambda d: _matrix(sym.coriolis_matrix(d)),
+        "C(q, qd) = J^T (diag(M_i) dJ/dt + B(V) J)",
+        "Coriolis/centrifugal matrix; C qd are the Coriolis forces and dM/dt - 2C is skew-symmetric.",
+    ),
+    QuantitySpec(
+        "coriolis_torques", ("q", "qd"), _vector, sym.coriolis_torques,
+        "C(q, qd) qd", "Coriolis and centrifugal generalized forces (recursive Newton-Euler).",
+    ),
+    QuantitySpec(
+        "gravity_torques", ("q",), _vector, sym.gravity_torques,
+        "Q_grav(q)", "Generalized gravity forces: the torques that hold the robot still.",
+    ),
+    QuantitySpec(
+        "inverse_dynamics", ("q", "qd", "qdd"), _vector, sym.inverse_dynamics,
+        "tau = M(q) qdd + C(q, qd) qd + Q_grav(q)",
+        "Joint forces for a motion (recursive Newton-Euler); add external_torques for end-effector loads.",
+    ),
+    QuantitySpec(
+        "external_torques", ("q", "wrench"), _vector, lambda d: sym.external_torques(d, _wrenches(d, 0)),
+        "Q_ext = sum_e J_e(q)^T W_e",
+        "Generalized forces of end-effector wrenches W_e (moment, force) in each end-effector's frame; "
+        "W_e is what the end-effector exerts on its environment, so tau = M qdd + C qd + Q_grav + Q_ext.",
+        needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "forward_kinematics", ("q",), _poses,
+        lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.frame_names]),
+        "C_f(q) = C_body(q) T_f", "World pose of every named frame (bodies, merged links, end-effectors).",
+    ),
+    QuantitySpec(
+        "body_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian),
+        "V_e = J_e(q) qd, body-fixed", "Body Jacobian of each end-effector: twist (omega, v) in its own frame.",
+        needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian),
+        "V_e^h = J_e^h(q) qd", "Hybrid Jacobian of each end-effector: (omega, velocity of the origin) in world axes.",
+        needs_end_effector=True,
+    ),
+    *_time_derivatives(1),
+    *_time_derivatives(2),
+    QuantitySpec(
+        "body_twist", ("q", "qd"), _per_body, lambda d: _bodies(d, sym.twist),
+        "V_i^ = C_i^-1 dC_i/dt, (omega, v)", "Body twist of every moving body, in its own frame.",
+    ),
+    QuantitySpec(
+        "hybrid_twist", ("q", "qd"), _per_body, lambda d: _bodies(d, sym.body_hybrid_twist),
+        "V_i^h = (R_i omega_i, dp_i/dt)",
+        "Hybrid twist of every moving body: angular velocity and velocity of the frame origin, world axes.",
+    ),
+    QuantitySpec(
+        "body_acceleration", ("q", "qd", "qdd"), _per_body,
+        lambda d: _bodies(d, lambda d_, i: sym.acceleration(d_, i, Terms.MOTION)),
+        "dV_i/dt", "Time derivative of the body twist of every moving body (Pinocchio's LOCAL spatial "
+        "acceleration); gravity not included.",
+    ),
+    QuantitySpec(
+        "hybrid_acceleration", ("q", "qd", "qdd"), _per_body, lambda d: _bodies(d, sym.body_hybrid_acceleration),
+        "dV_i^h/dt = (domega_i/dt, d^2p_i/dt^2)",
+        "Time derivative of the hybrid twist of every moving body: angular acceleration and classical "
+        "acceleration of the frame origin, world axes; gravity not included.",
+    ),
+    QuantitySpec(
+        "ee_body_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 0)),
+        "V_e = J_e qd", "Body twist (omega, v) of each end-effector, in its own frame.", needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "ee_hybrid_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, sym.frame_hybrid_twist),
+        "V_e^h = J_e^h qd = (omega, dp_e/dt)", "Hybrid twist of each end-effector (world axes, at its origin).",
+        needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "ee_body_acceleration", ("q", "qd", "qdd"), _per_ee,
+        lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 1)),
+        "dV_e/dt = J_e qdd + dJ_e/dt qd", "Time derivative of each end-effector's body twist; gravity not included.",
+        needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "ee_hybrid_acceleration", ("q", "qd", "qdd"), _per_ee,
+        lambda d: _end_effectors(d, sym.frame_hybrid_acceleration),
+        "dV_e^h/dt = J_e^h qdd + dJ_e^h/dt qd = (domega/dt, d^2p_e/dt^2)",
+        "Time derivative of each end-effector's hybrid twist (classical acceleration of its origin, world axes).",
+        needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "system_jacobian", ("q",), _system, lambda d: _flat(sym.system_jacobian(d)),
+        "V = J qd, J = (I - A)^-1 X",
+        "Body-fixed system Jacobian: block row i is body i's body Jacobian (rows (omega, v) in body i's frame).",
+    ),
+    QuantitySpec(
+        "system_jacobian_dot", ("q", "qd"), _system, lambda d: _flat(sym.system_jacobian_dot(d)),
+        "dJ/dt, dV/dt = J qdd + dJ/dt qd", "Time derivative of the body-fixed system Jacobian.",
+    ),
+    QuantitySpec(
+        "body_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian_dot),
+        "dJ_e/dt", "Time derivative of each end-effector's body Jacobian.", needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "hybrid_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian_dot),
+        "dJ_e^h/dt = blockdiag(R, R) (omega~ J_e + dJ_e/dt)",
+        "Time derivative of each end-effector's hybrid Jacobian.", needs_end_effector=True,
+    ),
+    QuantitySpec(
+        "forward_dynamics", ("q", "qd", "tau"), _vector, lambda d: sym.forward_dynamics(d, d.inputs.tau),
+        "qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q))",
+        "Forward dynamics in closed form: M = L^T D L factored symbolically with the tree's sparsity "
+        "(Featherstone 2005), then solved by substitution. End-effector wrenches: pass tau - Q_ext.",
+    ),
+    QuantitySpec(
+        "regressor", ("q", "qd", "qdd"), _regressor, lambda d: _flat(sym.regressor(d)),
+        "tau = Y(q, qd, qdd) pi",
+        "Inertial-parameter regressor: tau is Y times the standard parameters pi (10 per body: m, m c, "
+        "Ixx, Ixy, Iyy, Ixz, Iyz, Izz about the body frame origin), see jaxskid.standard_params.",
+    ),
+)
+
+QUANTITIES: MappingProxyType[str, QuantitySpec] = MappingProxyType({spec.name: spec for spec in _CATALOGUE})
+"""Every quantity jaxskid can derive, by name, in the canonical order (read-only)."""
+
+DEFAULT_QUANTITIES = (
+    "mass_matrix",
+    "coriolis_matrix",
+    "coriolis_torques",
+    "gravity_torques",
+    "inverse_dynamics",
+    "forward_dynamics",
+    "forward_kinematics",
+)
+"""What :func:`jaxskid.lower` derives when no quantity is named."""

@@ -1,0 +1,136 @@
+"""The standard inertial parameters: 10 per body, the parameters the regressor is linear in.
+
+Per body, in the order of ``q``: ``pi_i = (m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``,
+the inertia about the body frame's origin in its axes (Atkeson, An & Hollerbach, IJRR 5(3), 1986;
+Pinocchio's ``Inertia.toDynamicParameters`` order, :data:`jaxskid.model._lie.STANDARD_PARAMETER_NAMES`).
+They are named ``{link}_{p}``, the convention of the robot's own parameters (``upper_arm_link_m``).
+A robot's own parameters are read through :class:`~jaxskid.model._parameters.ParameterLayout`: a partial
+dict takes the defaults for the rest, and an unknown name is an error that names the closest valid ones.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from .._errors import ModelError, ShapeError
+from . import _lie as lie
+from ._parameters import ParameterLayout
+from ._robot import Robot, symbol
+
+N_STANDARD = len(lie.STANDARD_PARAMETER_NAMES)  # 10 parameters per body
+
+
+def standard_parameter_names(robot: Robot) -> tuple[str, ...]:
+    """``{link}_{m, mcx, ..., Izz}`` for every body, in the order of :func:`standard_params`."""
+    return tuple(f"{link}_{p}" for link in robot.link_names for p in lie.STANDARD_PARAMETER_NAMES)
+
+
+def standard_parameter_expressions(robot: Robot) -> list[sp.Expr]:
+    """The 10 n_bodies standard parameters as expressions of the robot's own parameter symbols."""
+    return [e for j in robot.joints for e in lie.standard_parameters(j.inertia)]
+
+
+def _layout(robot: Robot) -> ParameterLayout:
+    return ParameterLayout(robot.parameters, robot.default_params())
+
+
+def _values(robot: Robot, params, where: str) -> dict[str, float]:
+    """``params`` (None, a dict or a vector in the order of ``robot.parameters``) as name -> float."""
+    layout = _layout(robot)
+    if params is None or isinstance(params, Mapping):
+        values = layout.values(params, where)
+    else:
+        values = np.asarray(params, dtype=float)
+        if values.shape != (len(layout),):
+            raise ShapeError(f"{where}: expected a dict or a vector of shape ({len(layout)},), got {values.shape}")
+    return {k: float(v) for k, v in zip(layout.names, values)}
+
+
+def standard_params(robot: Robot, params: Mapping[str, float] | Sequence[float] | None = None) -> np.ndarray:
+    """The standard inertial parameters ``pi`` (10 per body) of ``robot`` at these parameter values.
+
+    ``pi`` is what the regressor multiplies: ``dyn.regressor(q, qd, qdd, params) @ pi`` equals
+    ``dyn.inverse_dynamics(q, qd, qdd, params)``. Per body, in the order of ``q``:
+    ``(m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``, the inertia about the body frame's
+    origin in its axes (Pinocchio's ``Inertia.toDynamicParameters``).
+
+    Args:
+        robot: the model.
+        params: ``None`` for the defaults, a dict name -> value (missing names take their defaults), or a
+            vector in the order of ``robot.parameters``.
+
+    Returns:
+        a float64 array of shape ``(10 * robot.n_dof,)``.
+    """
+    sub = {symbol(k): sp.Float(v) for k, v in _values(robot, params, "standard_params: params").items()}
+    return np.array([float(sp.sympify(e).xreplace(sub)) for e in standard_parameter_expressions(robot)])
+
+
+def _kinematic_symbols(robot: Robot) -> set:
+    """The symbols in poses, screws, gravity and frame offsets: everything but the inertias."""
+    out: set = set()
+    for j in robot.joints:
+        out |= j.origin.free_symbols | set().union(*(sp.sympify(x).free_symbols for x in j.screw))
+    for g in robot.gravity:
+        out |= sp.sympify(g).free_symbols
+    for f in robot.frames:
+        out |= f.offset.free_symbols
+    return out
+
+
+def _affine_system(robot: Robot, exprs: list, unknowns: list) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, b)`` with ``exprs = A x + b`` in the ``unknowns`` x; raises if an entry is not affine."""
+    a = np.zeros((len(exprs), len(unknowns)))
+    b = np.zeros(len(exprs))
+    for r, e in enumerate(exprs):
+        poly = sp.Poly(e, *unknowns) if unknowns else None
+        if poly is not None and poly.total_degree() > 1:
+            raise ModelError(
+                f"the inertia of body {robot.link_names[r // N_STANDARD]!r} is not affine in its parameters "
+                f"({lie.STANDARD_PARAMETER_NAMES[r % N_STANDARD]} = {e}); cannot invert",
+                where="params_from_standard",
+            )
+        for c, s in enumerate(unknowns):
+            a[r, c] = float(e.coeff(s)) if poly is not None else 0.0
+        b[r] = float(e.subs({s: 0 for s in unknowns}))
+    return a, b
+
+
+def params_from_standard(
+    robot: Robot, pi: Sequence[float], params: Mapping[str, float] | None = None
+) -> dict[str, float]:
+    """The robot's own inertial parameters that reproduce the standard parameters ``pi``.
+
+    The inverse of :func:`standard_params` where it exists: the parameters that appear only in the
+    inertias (not in poses, screws or gravity) are solved for, by least squares, provided the inertias
+    are affine in them (as for URDF robots read with ``symbolic_inertia``, where the map is the identity
+    up to names); the other parameters keep the values in ``params`` (missing ones take their defaults).
+
+    Raises:
+        ModelError: if the inertias are not affine in those parameters or ``pi`` cannot be reproduced.
+    """
+    pi = np.asarray(pi, dtype=float)
+    if pi.shape != (N_STANDARD * robot.n_dof,):
+        raise ShapeError(f"pi: expected shape ({N_STANDARD * robot.n_dof},), got {pi.shape}")
+    where = "params_from_standard: params"
+    layout = _layout(robot)
+    layout.check_names(params or {}, where)
+    kinematic = _kinematic_symbols(robot)
+    unknowns = [symbol(p) for p in robot.parameters if symbol(p) not in kinematic]
+    fixed = ParameterLayout([p for p in robot.parameters if symbol(p) in kinematic], layout.defaults)
+    given = {k: v for k, v in (params or {}).items() if k in fixed.names}
+    sub = {symbol(k): sp.Float(float(v)) for k, v in zip(fixed.names, fixed.values(given, where))}
+    exprs = [sp.expand(sp.sympify(e).xreplace(sub)) for e in standard_parameter_expressions(robot)]
+    a, b = _affine_system(robot, exprs, unknowns)
+    x, *_ = np.linalg.lstsq(a, pi - b, rcond=None) if unknowns else (np.zeros(0),)
+    err = np.abs(a @ x + b - pi).max() if len(pi) else 0.0
+    if err > 1e-9 * max(1.0, float(np.abs(pi).max())):
+        raise ModelError(
+            f"the robot's inertial parameters cannot reproduce pi (residual {err:.3g}); its inertias are "
+            "constrained (e.g. point masses or shared symbols)",
+            where="params_from_standard",
+        )
+    return {s.name: float(v) for s, v in zip(unknowns, x)}

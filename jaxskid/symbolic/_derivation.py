@@ -1,0 +1,132 @@
+"""One derivation: the robot, the symbols its equations are functions of, one tape and one memo.
+
+Every algorithm of the symbolic stage is a function ``f(d, *args)`` of a :class:`Derivation` ``d``. The
+ones whose results other algorithms reuse are declared :func:`memoized`: their result is computed once
+per derivation and argument tuple, so quantities derived together share their intermediates (a body's
+twist, its Jacobian columns, a composite inertia) and name each only once on the tape.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from ..model._robot import Robot, symbol
+from ._tape import Tape
+
+STATE_ORDERS = ("q", "qd", "qdd", "q3d", "q4d")
+"""The names of ``q`` and its time derivatives, by order."""
+
+WRENCH_ORDERS = ("wrench", "wrench_d", "wrench_dd")
+"""The names of the end-effector wrenches and their time derivatives, by order."""
+
+
+def _symbols(prefix: str, n: int) -> tuple[sp.Symbol, ...]:
+    return tuple(sp.Symbol(f"{prefix}{i}", real=True) for i in range(n))
+
+
+def _wrench_symbols(prefix: str, n_ee: int) -> tuple[tuple[sp.Symbol, ...], ...]:
+    return tuple(tuple(sp.Symbol(f"{prefix}{e}_{c}", real=True) for c in range(6)) for e in range(n_ee))
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """The symbols the derived equations are functions of.
+
+    ``state[k]`` holds the k-th time derivative of the joint positions (``_q{i}``, ``_qd{i}``, ``_qdd{i}``,
+    ``_q3d{i}``, ``_q4d{i}``), each of shape ``(n,)``; ``tau`` the joint forces ``_tau{i}``; ``wrenches[r]``
+    the r-th time derivative of the end-effector wrenches (moment, force), one 6-tuple per end-effector
+    (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters.
+    """
+
+    state: tuple[tuple[sp.Symbol, ...], ...]
+    tau: tuple[sp.Symbol, ...]
+    wrenches: tuple[tuple[tuple[sp.Symbol, ...], ...], ...]
+    params: tuple[sp.Symbol, ...]
+
+    @classmethod
+    def of(cls, robot: Robot) -> Inputs:
+        """The inputs of ``robot``'s equations."""
+        n, n_ee = robot.n_dof, len(robot.end_effectors)
+        return cls(
+            state=tuple(_symbols(f"_{k}", n) for k in STATE_ORDERS),
+            tau=_symbols("_tau", n),
+            wrenches=(_wrench_symbols("_w", n_ee), _wrench_symbols("_wrench_d", n_ee),
+                      _wrench_symbols("_wrench_dd", n_ee)),
+            params=tuple(symbol(p) for p in robot.parameters),
+        )
+
+    @property
+    def q(self) -> tuple[sp.Symbol, ...]:
+        return self.state[0]
+
+    @property
+    def qd(self) -> tuple[sp.Symbol, ...]:
+        return self.state[1]
+
+    @property
+    def qdd(self) -> tuple[sp.Symbol, ...]:
+        return self.state[2]
+
+    def by_name(self, name: str) -> tuple[sp.Symbol, ...]:
+        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"`` or one of
+        :data:`WRENCH_ORDERS`), row-major."""
+        if name in STATE_ORDERS:
+            return self.state[STATE_ORDERS.index(name)]
+        if name in WRENCH_ORDERS:
+            return tuple(s for w in self.wrenches[WRENCH_ORDERS.index(name)] for s in w)
+        if name == "tau":
+            return self.tau
+        raise KeyError(name)
+
+
+@dataclass(frozen=True, eq=False)
+class Derivation:
+    """The robot, its :class:`Inputs`, the tape every intermediate is named on, and the memo of the
+    :func:`memoized` algorithms.
+
+    ``trig`` is ``"symbols"`` (sin and cos of each ``q_i`` named once on the tape) or ``"inline"`` (left
+    in every expression).
+    """
+
+    robot: Robot
+    inputs: Inputs
+    trig: str = "symbols"
+    tape: Tape = field(default_factory=Tape)
+    memo: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        return self.robot.n_dof
+
+    @property
+    def q(self) -> tuple[sp.Symbol, ...]:
+        return self.inputs.q
+
+    @property
+    def qd(self) -> tuple[sp.Symbol, ...]:
+        return self.inputs.qd
+
+    @property
+    def qdd(self) -> tuple[sp.Symbol, ...]:
+        return self.inputs.qdd
+
+
+def memoized(fn: Callable) -> Callable:
+    """Declare ``fn(d, *args)`` memoised on the :class:`Derivation` ``d``: computed once per ``args``
+    (hashable, positional), then shared by every quantity of the derivation."""
+
+    @functools.wraps(fn)
+    def cached(d: Derivation, *args):
+        key = (fn, args)
+        try:
+            return d.memo[key]
+        except KeyError:
+            pass
+        out = d.memo[key] = fn(d, *args)
+        return out
+
+    return cached

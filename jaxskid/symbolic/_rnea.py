@@ -1,0 +1,82 @@
+"""The recursive Newton-Euler algorithm: tau, C qd, Q_grav and Q_ext on the tape.
+
+Body-fixed (Featherstone, "Rigid Body Dynamics Algorithms", 2008, Alg. 5.1; Müller 2018, sec. 3): after
+the forward pass of :mod:`._kinematics`, body i's own wrench is ``W_i = M_i Vd_i - ad(V_i)^T M_i V_i``; the
+backward pass sums ``F_i = W_i + sum_children T_c^T F_c`` and projects ``tau_i = X_i^T F_i``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+from ..model import _spatial as sa
+from ._derivation import Derivation, memoized
+from ._frames import body_loads
+from ._kinematics import Terms, Vec, acceleration, inertia, is_zero, screw, to_parent, twist, zero6
+
+
+@memoized
+def body_wrench(d: Derivation, i: int, terms: Terms) -> Vec:
+    """Newton-Euler wrench of body i alone: ``M_i Vd_i - ad(V_i)^T M_i V_i`` with the chosen terms."""
+    m = inertia(d, i)
+    parts = [sa.inertia_apply(m, acceleration(d, i, terms))]
+    if terms.velocity:
+        v = twist(d, i)
+        h = d.tape.vec(sa.inertia_apply(m, v))
+        parts.append(sa.coad_apply(v, h))
+    return d.tape.vec(sa.add(*parts))
+
+
+def backward(d: Derivation, wrenches: Sequence[Sequence]) -> Vec:
+    """The backward pass: ``F_i = W_i + sum_c T_c^T F_c`` from the bodies' own wrenches ``W_i`` (in
+    body frames), and ``tau_i = X_i^T F_i``. Returns tau, shape (n,)."""
+    f = list(wrenches)
+    tau: Vec = [None] * d.n
+    for i in reversed(range(d.n)):
+        w = d.tape.vec(f[i])
+        tau[i] = d.tape(sa.dot(screw(d, i), w))
+        parent = d.robot.joints[i].parent
+        if parent >= 0 and not is_zero(w):
+            f[parent] = sa.add(f[parent], to_parent(d, i, w))
+    return tau
+
+
+def newton_euler(d: Derivation, terms: Terms, loads: Mapping[int, Vec] | None = None) -> Vec:
+    """Generalized forces of the Newton-Euler recursion with the chosen terms.
+
+    ``loads`` adds wrenches (in body frames, by body index) that act like inertial loads, e.g. ``-F_ext``.
+    """
+    wrenches = []
+    for i in range(d.n):
+        parts = []
+        if terms is not Terms.NONE:
+            parts.append(body_wrench(d, i, terms))
+        if loads and i in loads:
+            parts.append(loads[i])
+        wrenches.append(sa.add(*parts) if parts else zero6())
+    return backward(d, wrenches)
+
+
+def inverse_dynamics(d: Derivation) -> Vec:
+    """``tau = M(q) qdd + C(q, qd) qd + Q_grav(q)``."""
+    return newton_euler(d, Terms.INVERSE_DYNAMICS)
+
+
+def coriolis_torques(d: Derivation) -> Vec:
+    """``C(q, qd) qd``."""
+    return newton_euler(d, Terms.CORIOLIS)
+
+
+def gravity_torques(d: Derivation) -> Vec:
+    """``Q_grav(q)``."""
+    return newton_euler(d, Terms.GRAVITY)
+
+
+def bias_forces(d: Derivation) -> Vec:
+    """``C(q, qd) qd + Q_grav(q)``."""
+    return newton_euler(d, Terms.BIAS)
+
+
+def external_torques(d: Derivation, wrenches: Mapping[str, Sequence]) -> Vec:
+    """``Q_ext = sum_e J_e^T W_e`` with W in (moment, force) order in each end-effector's frame."""
+    return newton_euler(d, Terms.NONE, body_loads(d, wrenches))

@@ -1,0 +1,140 @@
+"""Time derivatives of the dynamics: dM/dt, dC/dt, dQ_grav/dt, dtau/dt, dQ_ext/dt and the second ones.
+
+Built from the differentiated kinematics of :mod:`._time_kinematics` (Müller & Kumar 2021). Newton-Euler's
+body wrench ``W_i = M_i A_i - ad(V_i)^T M_i V_i`` is bilinear in the twists, so ``W_i^(k)`` is a Leibniz
+sum; the backward pass ``F_i = W_i + sum_c T_c^T F_c`` is differentiated with the wrench rule
+``(T^T F)^(k) = T^T sum_m C(k, m) P_m^T F^(k-m)``. Each derivative of tau, Q_grav and Q_ext is thus a
+Newton-Euler pass over differentiated kinematics, dM/dt a composite-rigid-body pass over differentiated
+composite inertias, and dC/dt the column-wise Newton-Euler pass of :mod:`._coriolis` over differentiated
+Jacobian columns and twists. Every intermediate is named on the shared tape, so the quantities requested
+together share their work.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from math import comb
+
+import sympy as sp
+
+from ..model import _spatial as sa
+from ._coriolis import coriolis_wrench
+from ._crba import apply_composite
+from ._derivation import Derivation, memoized
+from ._frames import body_loads
+from ._jacobians import jacobian_columns
+from ._kinematics import Terms, Vec, inertia, is_zero, screw, zero6
+from ._rnea import body_wrench
+from ._time_kinematics import (
+    composite_inertia_derivative, gravity_derivative, jacobian_column_derivative, pulled, twist_derivative,
+)
+
+
+def backward_derivative(d: Derivation, wrenches: Sequence[Sequence[Vec]], k: int) -> Vec:
+    """``tau^(k)`` of the Newton-Euler backward pass ``F_i = W_i + sum_c T_c^T F_c``, ``tau_i = X_i^T F_i``.
+
+    ``wrenches[i]`` holds the derivatives ``[W_i, W_i', ..., W_i^(k)]`` of body i's own wrench.
+    """
+    f = [[list(w) for w in wrenches[i]] for i in range(d.n)]
+    tau: Vec = [sp.Integer(0)] * d.n
+    for i in reversed(range(d.n)):
+        jet = [d.tape.vec(w) for w in f[i]]
+        tau[i] = d.tape(sa.dot(screw(d, i), jet[k]))
+        parent = d.robot.joints[i].parent
+        if parent >= 0:
+            for r in range(k + 1):
+                moved = pulled(d, i, jet, r)
+                if not is_zero(moved):
+                    f[parent][r] = sa.add(f[parent][r], moved)
+    return tau
+
+
+@memoized
+def body_wrench_derivative(d: Derivation, i: int, k: int, terms: Terms) -> Vec:
+    """``W_i^(k)`` of ``W_i = M_i (Vd_i + u_i) - ad(V_i)^T M_i V_i`` for ``Terms.INVERSE_DYNAMICS``, or of
+    ``W_i = M_i u_i`` for ``Terms.GRAVITY``."""
+    if k == 0:
+        return body_wrench(d, i, terms)
+    m = inertia(d, i)
+    parts = []
+    if terms.velocity:
+        parts.append(twist_derivative(d, i, k + 1))
+    if terms.gravity:
+        parts.append(gravity_derivative(d, i, k))
+    out = sa.inertia_apply(m, d.tape.vec(sa.add(*parts)))
+    if terms.velocity:
+        for r in range(k + 1):
+            h = d.tape.vec(sa.inertia_apply(m, twist_derivative(d, i, k - r)))
+            out = sa.add(out, sa.scale(sa.coad_apply(twist_derivative(d, i, r), h), comb(k, r)))
+    return d.tape.vec(out)
+
+
+def newton_euler_derivative(d: Derivation, k: int, terms: Terms) -> Vec:
+    """``tau^(k)`` (``Terms.INVERSE_DYNAMICS``) or ``Q_grav^(k)`` (``Terms.GRAVITY``)."""
+    jets = [[body_wrench_derivative(d, i, r, terms) for r in range(k + 1)] for i in range(d.n)]
+    return backward_derivative(d, jets, k)
+
+
+def external_torques_derivative(d: Derivation, wrenches: Sequence[Mapping[str, Sequence]], k: int) -> Vec:
+    """``Q_ext^(k)``; ``wrenches[r]`` maps each end-effector to the r-th derivative of its wrench
+    (moment, force), in its frame."""
+    loads = [body_loads(d, wrenches[r]) for r in range(k + 1)]
+    jets = [[loads[r].get(i, zero6()) for r in range(k + 1)] for i in range(d.n)]
+    return backward_derivative(d, jets, k)
+
+
+def mass_matrix_derivative(d: Derivation, k: int) -> sp.Matrix:
+    """``M^(k)``: ``M_ij = X_j^T (T^T ... Ic_i X_i)``, the composite-rigid-body pass over ``Ic^(r)``."""
+    m = sp.zeros(d.n)
+    for i in range(d.n):
+        x = screw(d, i)
+        jet = [d.tape.vec(apply_composite(d, i, x) if r == 0 else
+                          sa.inertia_apply(composite_inertia_derivative(d, i, r).tolist(), x)) for r in range(k + 1)]
+        m[i, i] = d.tape(sa.dot(x, jet[k]))
+        j = i
+        while d.robot.joints[j].parent >= 0:
+            jet = [pulled(d, j, jet, r) for r in range(k + 1)]
+            j = d.robot.joints[j].parent
+            m[i, j] = m[j, i] = d.tape(sa.dot(screw(d, j), jet[k]))
+    return m
+
+
+def coriolis_matrix_derivative(d: Derivation, k: int) -> sp.Matrix:
+    """``C^(k)``: column c is the backward pass of ``W_i = M_i Jd_{i,c} + B(V_i) J_{i,c}``, with ``B``
+    bilinear in (V, J), differentiated by Leibniz."""
+    out = sp.zeros(d.n)
+    for c in range(d.n):
+        wrenches = []
+        for i in range(d.n):
+            if c not in jacobian_columns(d, i):
+                wrenches.append([zero6()] * (k + 1))
+                continue
+            wrenches.append([coriolis_wrench_derivative(d, i, c, r) for r in range(k + 1)])
+        for i, e in enumerate(backward_derivative(d, wrenches, k)):
+            out[i, c] = e
+    return out
+
+
+@memoized
+def coriolis_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
+    """``d^r/dt^r (M J'_{i,c} + B(V_i) J_{i,c})``, ``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))``.
+
+    B is bilinear, so the Leibniz sum ``sum_s C(r, s) B(V^(s), J^(r-s))`` applies M once to the sum of
+    the brackets, and the products ``M J^(j)`` and ``M V^(s)`` are shared between orders.
+    """
+    if r == 0:
+        return coriolis_wrench(d, i, c)
+    m = inertia(d, i)
+    brackets, duals = [], []
+    for s in range(r + 1):
+        v, x, w = twist_derivative(d, i, s), jacobian_column_derivative(d, i, c, r - s), comb(r, s)
+        if is_zero(x):
+            continue
+        h = d.tape.vec(sa.inertia_apply(m, v))
+        mx = d.tape.vec(sa.inertia_apply(m, x))
+        brackets.append(sa.scale(sa.ad_apply(v, x), w))
+        duals.append(sa.scale(sa.add(sa.coad_apply(v, mx), sa.coad_apply(x, h)), w))
+    half = sp.Rational(1, 2)
+    inner = sa.add(jacobian_column_derivative(d, i, c, r + 1), sa.scale(sa.add(zero6(), *brackets), half))
+    out = sa.add(sa.inertia_apply(m, d.tape.vec(inner)), sa.scale(sa.add(zero6(), *duals), half))
+    return d.tape.vec(out)
