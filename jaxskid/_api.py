@@ -79,8 +79,7 @@ def lower(
     else:
         robot = model if symbolic is None else model.keep_symbolic(symbolic)
         names, options = resolve(robot, quantities), options or Options()
-    key = request_key([GENERATOR_VERSION, robot.fingerprint(), repr(names), repr(options),
-                       repr(sorted(robot.default_params().items()))])  # the module's METADATA holds the defaults
+    key = module_key(robot, names, options)
     path = entry_path(cache_dir, robot.name, key) if cache else None
     found = read_entry(path, key) if path is not None else None
     if found is None:
@@ -88,6 +87,14 @@ def lower(
         found = store_entry(path, module_source(Layout(eqs, names, jax_names)), key)
     namespace, source = found
     return Dynamics(namespace, source, path)
+
+
+def module_key(robot: Robot, names: Sequence[str], options: Options | None = None) -> str:
+    """The cache key of the JAX module of ``names``: everything that determines it (the generator's version,
+    the robot, the quantities, the options and the defaults, which the module's METADATA holds)."""
+    options = options or Options()
+    return request_key([GENERATOR_VERSION, robot.fingerprint(), repr(tuple(names)), repr(options),
+                        repr(sorted(robot.default_params().items()))])
 
 
 def compile_native(

@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from jaxskid.lowering._jax import request_key
+from jaxskid._api import module_key as request_key
 from jaxskid.testing import _reference as ref_
 from pinref import to_pinocchio
 
