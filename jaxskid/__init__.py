@@ -8,17 +8,19 @@ from .symbolic import _time_derivatives as _derivatives  # noqa: F401  (register
 from .symbolic import _forward  # noqa: F401  (registers the closed-form forward dynamics)
 from .symbolic._regressor import params_from_standard, standard_parameter_names, standard_params
 from .lowering._jax import cache_dir
-from .runtime._dynamics import Dynamics, compiler_options, jit
+from .runtime._dynamics import Dynamics
+from .runtime._jit import compiler_options, jit
 from ._api import load, lower
 from .runtime._native import BuildError, NativeDynamics, compile_native
 from . import codegen
 from .description._urdf import read_urdf
-from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, forward_dynamics, mass_matrix_condition, rollout
+from .runtime._forward import forward_dynamics, mass_matrix_condition
+from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, rollout
 from .apps._identification import (
     Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky, Standard,
     WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
 )
-from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor
+from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
 from .description._yaml import DescriptionExtras, parse_description, read_description, read_extras, robot_to_dict, write_description
 
 __version__ = "0.1.0"
@@ -74,6 +76,7 @@ __all__ = [
     "PDGravity",
     "SlotineLi",
     "mixed_regressor",
+    "reference_derivatives",
     "Adam",
     "BaseParameters",
     "Estimate",

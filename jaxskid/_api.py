@@ -7,7 +7,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from .runtime._dynamics import Dynamics
-from .equations._derive import Options
+from .equations._derive import QUANTITIES, Options
 from ._errors import ModelError
 from .lowering._jax import generate_module
 from .model._robot import Robot
@@ -70,4 +70,4 @@ def lower(
     ns, source, path = generate_module(
         robot, quantities, cache=cache, directory=cache_dir, options=options, progress=progress
     )
-    return Dynamics(ns, source, path)
+    return Dynamics(ns, source, path, catalogue=tuple(QUANTITIES))
