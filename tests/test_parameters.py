@@ -108,6 +108,21 @@ def test_dict_and_vector_and_none_agree(pendulum):
                                   np.asarray(jaxskid.forward_dynamics(dyn, q, qd, qdd, p)))
 
 
+def test_a_dict_changed_between_calls_is_read_again(pendulum):
+    """A dict equal to the last one reuses its packed vector; a changed one (in place) does not."""
+    robot, dyn = pendulum
+    q, qd, qdd = states(2, (), 13)
+    named = robot.default_params()
+    before = np.asarray(dyn.mass_matrix(q, named))
+    named["m2"] = 3.0
+    after = np.asarray(dyn.mass_matrix(q, named))
+    np.testing.assert_array_equal(after, np.asarray(dyn.mass_matrix(q, {"m2": 3.0})))
+    assert not np.allclose(after, before)
+    np.testing.assert_array_equal(np.asarray(dyn.param_vector(named))[dyn.parameters.index("m2")], 3.0)
+    batched = dict(named, m1=np.array([1.0, 2.0]))  # equal keys, an array value: packed inside, not reused
+    assert dyn.inverse_dynamics(q, qd, qdd, batched).shape == (2, 2)
+
+
 def test_parameter_without_default_must_be_given(tmp_path):
     text = PENDULUM.read_text().replace("  g: 9.81\n", "")
     path = tmp_path / "pendulum_no_g.yaml"
