@@ -121,6 +121,9 @@ def test_a_dict_changed_between_calls_is_read_again(pendulum):
     np.testing.assert_array_equal(np.asarray(dyn.param_vector(named))[dyn.parameters.index("m2")], 3.0)
     batched = dict(named, m1=np.array([1.0, 2.0]))  # equal keys, an array value: packed inside, not reused
     assert dyn.inverse_dynamics(q, qd, qdd, batched).shape == (2, 2)
+    lighter = dict(named, m1=0.5)
+    inside = jax.jit(lambda q: dyn.mass_matrix(q, lighter))(q)  # a new plain dict inside a caller's jit
+    np.testing.assert_array_equal(np.asarray(dyn.mass_matrix(q, lighter)), np.asarray(inside))  # nothing leaked
 
 
 def test_parameter_without_default_must_be_given(tmp_path):

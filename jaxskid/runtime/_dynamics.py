@@ -11,10 +11,11 @@ states' (``dyn.mass_matrix(q_batch, p_batch)``).
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Mapping
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._errors import ShapeError
 from ..model._parameters import ParameterLayout
@@ -67,6 +68,7 @@ class Dynamics(QuantitySet):
             name: functools.partial(_plain, namespace["_" + name], same) for name in quantities
         }
         self._jitted: dict[str, Callable] = {}
+        self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
 
     def raw(self, name: str, batched: bool = True) -> Callable:
         """The generated function for one state, ``f(*state, p)`` with ``p`` a parameter vector.
@@ -77,6 +79,20 @@ class Dynamics(QuantitySet):
         there, and on the closed-form forward dynamics its simplifier loops over it).
         """
         return self._raw[name] if batched else self._plain[name]
+
+    def _packed(self, params, where: str = "params"):
+        """As :meth:`QuantitySet._packed`, and a dict's vector is kept on the device too: passed to a
+        jitted function, a host array costs a transfer per call (about 20 us), a device array does not."""
+        packed = super()._packed(params, where)
+        if not (isinstance(params, Mapping) and isinstance(packed, np.ndarray)):
+            return packed
+        vector, on_device = self._on_device
+        if vector is not packed:  # a new dict (its packed vector is read-only and new: identity tells)
+            on_device = jnp.asarray(packed)
+            if isinstance(on_device, jax.core.Tracer):  # inside a caller's trace: a constant of it
+                return on_device
+            self._on_device = (packed, on_device)
+        return on_device
 
     # ------------------------------------------------------------------ the functions
     def __getattr__(self, name: str):
