@@ -1,10 +1,16 @@
 """Derive + lower + compile time, and batched throughput of tau, M, Q_grav and C qd against Pinocchio.
 
     python benchmarks/core.py [--robot panda] [--repeats 7]
+    python benchmarks/core.py --params-cost     # only: parameters as a dict against a vector (G1)
 
 Every figure is a median over repeats, measured in this run, through the public functions
 (``dyn.mass_matrix(q)`` with ``q`` of shape ``(batch, n)``; batch 1 is one state of shape ``(n,)``); the
 Pinocchio figures are per call from Python on the same states. Ratios > 1 mean jaxskid is faster per state.
+
+``--params-cost`` times ``inverse_dynamics`` of the Unitree G1 (29 DOF, fixed base, 290 parameters) per
+call with its parameters given as a dict of plain numbers (``dyn.default_params()``) and as a vector
+(``dyn.param_vector()``), on one state and on a batch of 4096; the two calls alternate, each figure is the
+median, and the ratio dict / vector is the cost of naming the parameters.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ ROBOTS = {
     "ur5": (ERD / "ur_description/urdf/ur5_robot.urdf", None),
     "solo12": (ERD / "solo_description/robots/solo12.urdf", None),
 }
+G1 = ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf"
 QUANTITIES = ("inverse_dynamics", "mass_matrix", "gravity_torques", "coriolis_torques")
 ARGS = {"inverse_dynamics": 3, "mass_matrix": 1, "gravity_torques": 1, "coriolis_torques": 2}
 
@@ -42,6 +49,38 @@ def median_time(fn, repeats: int) -> float:
         fn()
         times.append(time.perf_counter() - t)
     return float(np.median(times))
+
+
+def alternating_medians(calls, repeats: int) -> list[float]:
+    """The median time of each call, the calls taken in turn (so that load on the machine hits all alike)."""
+    for call in calls:
+        call()
+    times = [[] for _ in calls]
+    for _ in range(repeats):
+        for call, out in zip(calls, times):
+            t = time.perf_counter()
+            call()
+            out.append(time.perf_counter() - t)
+    return [float(np.median(t)) for t in times]
+
+
+def params_cost(repeats: int) -> None:
+    """``inverse_dynamics`` of the G1 per call, parameters as a dict against a vector."""
+    robot = jaxskid.load(G1)
+    dyn = jaxskid.lower(robot, ["inverse_dynamics"])
+    vector, named = dyn.param_vector(), dyn.default_params()
+    print(f"G1: {robot.n_dof} DOF, {len(dyn.parameters)} parameters, inverse_dynamics, jax {jax.__version__}, "
+          f"float64; median per call, dict and vector calls alternating")
+    print(f"{'batch':>6s} {'vector us/call':>15s} {'dict us/call':>13s} {'dict / vector':>14s}")
+    rng = np.random.default_rng(0)
+    for batch, count in ((1, max(repeats, 201)), (4096, max(repeats, 21))):
+        q, qd, qdd = (jnp.asarray(rng.uniform(-1, 1, size=(batch, robot.n_dof))) for _ in range(3))
+        if batch == 1:
+            q, qd, qdd = q[0], qd[0], qdd[0]
+        t_vec, t_dict = alternating_medians(
+            [lambda: jax.block_until_ready(dyn.inverse_dynamics(q, qd, qdd, vector)),
+             lambda: jax.block_until_ready(dyn.inverse_dynamics(q, qd, qdd, named))], count)
+        print(f"{batch:6d} {t_vec * 1e6:15.1f} {t_dict * 1e6:13.1f} {t_dict / t_vec:14.2f}")
 
 
 def pinocchio_calls(model, q, qd, qdd, repeats):
@@ -69,7 +108,12 @@ def main(argv=None):
     ap.add_argument("--batches", default="1,1024,65536")
     ap.add_argument("--symbolic", choices=("all", "none"), default="all",
                     help="keep every inertial parameter symbolic (all) or substitute the URDF values (none)")
+    ap.add_argument("--params-cost", action="store_true",
+                    help="only time the G1's inverse_dynamics with its parameters as a dict against a vector")
     args = ap.parse_args(argv)
+    if args.params_cost:
+        params_cost(args.repeats)
+        return
     path, lock = ROBOTS[args.robot]
     batches = [int(b) for b in args.batches.split(",")]
 

@@ -22,7 +22,6 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
-from jaxskid.apps._control import reference_derivatives  # noqa: E402
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "arm_2r.yaml"
 
@@ -47,7 +46,7 @@ def main(out_dir=None, seconds=40.0, dt=2e-3):
 
     # adaptation gains balanced by the regressor's column sizes along the reference
     ts = jnp.linspace(0.0, 20.0, 501)
-    q, v, a = jax.vmap(lambda t: reference_derivatives(reference, t))(ts)
+    q, v, a = jax.vmap(lambda t: jaxskid.reference_derivatives(reference, t))(ts)
     y = np.asarray(base.reduce(dyn.regressor(q, v, a)))
     kd, lam = 20.0, 10.0
     gamma = kd / np.mean(np.sum(y * y, axis=1), axis=0)

@@ -54,6 +54,30 @@ def excitation(rng, t, n=7, harmonics=5, base_freq=0.2):
     return q, qd, qdd
 
 
+def plot(figure: Path, t, tau_v, pred, z_scores) -> Path:
+    """Measured against identified torques on the validation trajectory, and the estimates' z-scores."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for j, color in zip((1, 3, 5), ("C0", "C1", "C2")):
+        axes[0].plot(t, tau_v[:, j], color=color, lw=2, alpha=0.4, label=f"joint {j + 1} true")
+        axes[0].plot(t, pred[:, j], color=color, ls="--", label=f"joint {j + 1} identified")
+    axes[0].set(xlabel="t [s]", ylabel="tau [Nm]", title="validation trajectory")
+    axes[0].legend(fontsize=7, ncol=2)
+    axes[1].bar(np.arange(len(z_scores)), z_scores)
+    axes[1].axhline(3, color="k", lw=0.5)
+    axes[1].axhline(-3, color="k", lw=0.5)
+    axes[1].set(xlabel="base parameter", ylabel="(estimate - truth) / std",
+                title=f"{len(z_scores)} base parameters, weighted least squares")
+    fig.tight_layout()
+    fig.savefig(figure, dpi=100)
+    plt.close(fig)
+    return figure
+
+
 def main(out_dir=None, seed=0):
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
@@ -94,26 +118,7 @@ def main(out_dir=None, seed=0):
     rms_physical = np.sqrt(np.mean((yv @ fit.params - tau_v) ** 2, axis=0))
     elapsed = time.perf_counter() - start
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    for j, color in zip((1, 3, 5), ("C0", "C1", "C2")):
-        axes[0].plot(t, tau_v[:, j], color=color, lw=2, alpha=0.4, label=f"joint {j + 1} true")
-        axes[0].plot(t, pred[:, j], color=color, ls="--", label=f"joint {j + 1} identified")
-    axes[0].set(xlabel="t [s]", ylabel="tau [Nm]", title="validation trajectory")
-    axes[0].legend(fontsize=7, ncol=2)
-    axes[1].bar(np.arange(base.n_base), z_scores)
-    axes[1].axhline(3, color="k", lw=0.5)
-    axes[1].axhline(-3, color="k", lw=0.5)
-    axes[1].set(xlabel="base parameter", ylabel="(estimate - truth) / std",
-                title=f"{base.n_base} base parameters, weighted least squares")
-    fig.tight_layout()
-    figure = output_dir(out_dir) / "identify_panda.png"
-    fig.savefig(figure, dpi=100)
-    plt.close(fig)
+    figure = plot(output_dir(out_dir) / "identify_panda.png", t, tau_v, pred, z_scores)
 
     result = {
         "n_base": base.n_base,

@@ -6,18 +6,20 @@ from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
 from .model._standard import params_from_standard, standard_parameter_names, standard_params
 from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from .lowering._cache import cache_dir
-from .runtime._dynamics import Dynamics, compiler_options, jit
+from .runtime._dynamics import Dynamics
+from .runtime._jit import compiler_options, jit
 from ._api import compile_native, load, lower
 from .lowering._native import BuildError
 from .runtime._native import NativeDynamics
 from . import codegen
 from .description._urdf import read_urdf
-from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, forward_dynamics, mass_matrix_condition, rollout
+from .runtime._forward import forward_dynamics, mass_matrix_condition
+from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, rollout
 from .apps._identification import (
     Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky, Standard,
     WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
 )
-from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor
+from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
 from .description._yaml_schema import DescriptionExtras, parse_description, read_description, read_extras
 from .description._yaml_writer import robot_to_dict, write_description
 from .description._report import describe, draw_tree
@@ -77,6 +79,7 @@ __all__ = [
     "PDGravity",
     "SlotineLi",
     "mixed_regressor",
+    "reference_derivatives",
     "Adam",
     "BaseParameters",
     "Estimate",

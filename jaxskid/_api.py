@@ -11,7 +11,7 @@ from ._errors import ModelError, RequestError
 from .codegen import Layout
 from .codegen._c import emit_c
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
-from .equations._derive import QUANTITIES, Equations, Options, derive, resolve
+from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
 from .lowering._native import build, default_backend
@@ -86,7 +86,7 @@ def lower(
         eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
         found = store_entry(path, module_source(Layout(eqs, names, jax_names)), key)
     namespace, source = found
-    return Dynamics(namespace, source, path)
+    return Dynamics(namespace, source, path, catalogue=tuple(QUANTITIES))
 
 
 def module_key(robot: Robot, names: Sequence[str], options: Options | None = None) -> str:

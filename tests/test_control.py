@@ -17,7 +17,7 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from jaxskid.apps._control import reference_derivatives
+from jaxskid import reference_derivatives
 from jaxskid.apps._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot

@@ -13,13 +13,18 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from ..runtime._dynamics import Dynamics
 from .._errors import RequestError, ShapeError
-from ._simulate import Controller, _param_array
+from ..runtime._dynamics import Dynamics
+from ._simulate import Controller
 
 
 def reference_derivatives(reference: Callable, t) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """``(q_d, qd_d, qdd_d)`` of the reference at time ``t`` by nested forward-mode differentiation."""
+    """``(q_d, qd_d, qdd_d)``: a reference ``q_d(t)`` and its first two time derivatives at time ``t``.
+
+    ``reference`` maps a scalar time to positions ``(n,)`` and must be differentiable by JAX; the
+    derivatives are taken by nested forward-mode differentiation (``jax.jvp`` of ``jax.jvp``), exactly, with
+    no finite differences. ``jax.vmap`` over ``t`` gives a whole trajectory: ``(T, n)`` each.
+    """
     t = jnp.asarray(t)
 
     def position_velocity(s):
@@ -48,7 +53,23 @@ def _split(x):
     return x[:n], x[n:]
 
 
-class ComputedTorque(Controller):
+class _Tracking(Controller):
+    """A stateless tracking law with diagonal gains ``kp``, ``kd`` and the model's parameters ``params``."""
+
+    def __init__(self, dyn: Dynamics, reference, kp, kd, params=None):
+        self.reference = _as_reference(reference)
+        self.kp, self.kd = jnp.asarray(kp), jnp.asarray(kd)
+        self.dyn, self.params = dyn, params
+
+    def _errors(self, t, x):
+        """``(q, qd, p, e, ed, qdd_d)``: the state, the parameter vector, the errors ``e = q_d - q`` and
+        ``ed = qd_d - qd``, and the reference acceleration."""
+        q, qd = _split(x)
+        qr, vr, ar = reference_derivatives(self.reference, t)
+        return q, qd, self.dyn.param_vector(self.params, x.dtype), qr - q, vr - qd, ar
+
+
+class ComputedTorque(_Tracking):
     """Computed-torque (inverse-dynamics) control (Lynch & Park 2017, eq. 11.35):
 
         tau = M(q) (qdd_d + kd (qd_d - qd) + kp (q_d - q)) + C(q, qd) qd + Q_grav(q),
@@ -59,19 +80,15 @@ class ComputedTorque(Controller):
 
     def __init__(self, dyn: Dynamics, reference, kp, kd, params=None):
         _needs(dyn, ("inverse_dynamics",), "ComputedTorque")
+        super().__init__(dyn, reference, kp, kd, params)
         self.rnea = dyn.raw("inverse_dynamics")
-        self.reference = _as_reference(reference)
-        self.kp, self.kd = jnp.asarray(kp), jnp.asarray(kd)
-        self.dyn, self.params = dyn, params
 
     def __call__(self, t, x, z):
-        q, qd = _split(x)
-        qr, vr, ar = reference_derivatives(self.reference, t)
-        v = ar + self.kd * (vr - qd) + self.kp * (qr - q)
-        return self.rnea(q, qd, v, _param_array(self.dyn, self.params, x.dtype)), ()
+        q, qd, p, e, ed, ar = self._errors(t, x)
+        return self.rnea(q, qd, ar + self.kd * ed + self.kp * e, p), ()
 
 
-class PDGravity(Controller):
+class PDGravity(_Tracking):
     """PD control with gravity compensation (Lynch & Park 2017, eq. 11.33; Takegaki & Arimoto 1981):
 
         tau = kp (q_d - q) + kd (qd_d - qd) + Q_grav(q).
@@ -81,22 +98,17 @@ class PDGravity(Controller):
     """
 
     def __init__(self, dyn: Dynamics, reference, kp, kd, params=None):
+        super().__init__(dyn, reference, kp, kd, params)
         if "gravity_torques" in dyn.quantities:
-            grav = dyn.raw("gravity_torques")
-            self.gravity = grav
+            self.gravity = dyn.raw("gravity_torques")
         else:
             _needs(dyn, ("inverse_dynamics",), "PDGravity (without gravity_torques)")
             rnea = dyn.raw("inverse_dynamics")
             self.gravity = lambda q, p: rnea(q, jnp.zeros_like(q), jnp.zeros_like(q), p)
-        self.reference = _as_reference(reference)
-        self.kp, self.kd = jnp.asarray(kp), jnp.asarray(kd)
-        self.dyn, self.params = dyn, params
 
     def __call__(self, t, x, z):
-        q, qd = _split(x)
-        qr, vr, _ = reference_derivatives(self.reference, t)
-        p = _param_array(self.dyn, self.params, x.dtype)
-        return self.kp * (qr - q) + self.kd * (vr - qd) + self.gravity(q, p), ()
+        q, _, p, e, ed, _ = self._errors(t, x)
+        return self.kp * e + self.kd * ed + self.gravity(q, p), ()
 
 
 def mixed_regressor(dyn: Dynamics, q, qd, v, a, params=None) -> jax.Array:
@@ -110,7 +122,7 @@ def mixed_regressor(dyn: Dynamics, q, qd, v, a, params=None) -> jax.Array:
         Y(q, 0, a) + (Y(q, qd + v, 0) - Y(q, qd, 0) - Y(q, v, 0) + Y(q, 0, 0)) / 2.
     """
     _needs(dyn, ("regressor",), "mixed_regressor")
-    p = _param_array(dyn, params, jnp.result_type(q, qd, v, a))
+    p = dyn.param_vector(params, jnp.result_type(q, qd, v, a))
     return _mixed(dyn.raw("regressor"), q, qd, v, a, p)
 
 
@@ -158,7 +170,7 @@ class SlotineLi(Controller):
         e, ed = q - qr, qd - vr
         v = vr - self.lam * e
         a = ar - self.lam * ed
-        y = _mixed(self.reg, q, qd, v, a, _param_array(self.dyn, self.params, x.dtype))
+        y = _mixed(self.reg, q, qd, v, a, self.dyn.param_vector(self.params, x.dtype))
         if self.base is not None:
             y = self.base.reduce(y)
         return y, qd - v

@@ -1,7 +1,7 @@
 """Inertial-parameter identification: base parameters, (weighted) least squares, gradient fits.
 
 The equations of motion are linear in the standard parameters, ``tau = Y(q, qd, qdd) pi``
-(:mod:`jaxskid.symbolic._regressor`). Not every combination of ``pi`` moves the joints; the identifiable ones are
+(:mod:`jaxskid.symbolic._regressor`, standard parameters in :mod:`jaxskid.model._standard`). Not every combination of ``pi`` moves the joints; the identifiable ones are
 the **base parameters** ``pi_b = K pi``, found numerically by QR with column pivoting of the regressor
 stacked over random states (Gautier & Khalil, "Direct calculation of minimum set of inertial parameters
 of serial robots", IEEE T-RA 6(3), 1990; Gautier, "Numerical calculation of the base inertial parameters
@@ -25,11 +25,13 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import scipy.linalg
 
-from ..runtime._dynamics import Dynamics, jit
 from .._errors import RequestError, ShapeError
-from ._simulate import RK4, Trajectory, _param_array, rollout
+from ..runtime._dynamics import Dynamics
+from ..runtime._jit import jit
+from ._simulate import RK4, Trajectory, rollout
 
 
 # ---------------------------------------------------------------------------------------- base parameters
@@ -99,7 +101,7 @@ def base_parameters(
         samples: random states stacked (``samples * n`` rows; more than ``10 n_bodies / n`` needed).
         seed: the random states' seed.
         tol: a pivot below ``tol * |R_00|`` counts as zero (the regressor entries are O(1) here).
-        names: names of the standard parameters (``jaxskid._regressor.standard_parameter_names``).
+        names: names of the standard parameters (``jaxskid.standard_parameter_names``).
     """
     if "regressor" not in dyn.quantities:
         raise RequestError(f"base_parameters needs the quantity regressor; lowered: {', '.join(dyn.quantities)}")
@@ -148,7 +150,7 @@ class GradientFit:
     :class:`Parameterization` of the standard parameters (``Y`` must be the full regressor, not reduced).
 
     ``init``: the standard parameters to start from (mapped to theta by the parameterization);
-    ``optimizer``: :class:`Adam`, :class:`GradientDescent` or any optax ``GradientTransformation``;
+    ``optimizer``: any optax ``GradientTransformation`` (default ``optax.adam(1e-2)``);
     ``prior``: weight of a pull toward ``init`` that fixes the directions the data leave free.
     """
 
@@ -224,7 +226,7 @@ def _gradient_fit(y, tau, method: GradientFit) -> Estimate:
         r = jnp.einsum("snp,p->sn", yj, pi) - tj
         return scale * jnp.mean(r * r) + method.prior * jnp.sum((pi - init) ** 2)
 
-    result = fit(loss, par.init(init), optimizer=method.optimizer or Adam(1e-2), steps=method.steps)
+    result = fit(loss, par.init(init), optimizer=method.optimizer, steps=method.steps)
     pi = np.asarray(par.standard(result.theta))
     res = tau - np.einsum("snp,p->sn", y, pi)
     return Estimate(pi, None, np.sqrt(np.mean(res * res, axis=0)), np.asarray(result.history))
@@ -319,42 +321,17 @@ def physically_consistent(pi, tol: float = 0.0) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------- gradient fits
-@dataclass(frozen=True)
-class GradientDescent:
-    """Plain gradient descent ``theta <- theta - learning_rate * grad`` (optax's protocol: init, update)."""
+def Adam(learning_rate: float = 1e-2, b1: float = 0.9, b2: float = 0.999, eps: float = 1e-8) -> optax.GradientTransformation:  # noqa: N802
+    """Adam (Kingma & Ba, "Adam: a method for stochastic optimization", ICLR 2015): ``optax.adam``.
 
-    learning_rate: float = 1e-2
-
-    def init(self, theta):
-        return ()
-
-    def update(self, grads, state, params=None):
-        return jax.tree.map(lambda g: -self.learning_rate * g, grads), state
+    A shorthand kept for :func:`fit` and :class:`GradientFit`; any optax transformation may be passed instead.
+    """
+    return optax.adam(learning_rate, b1=b1, b2=b2, eps=eps)
 
 
-@dataclass(frozen=True)
-class Adam:
-    """Adam (Kingma & Ba, ICLR 2015) with optax's protocol (init, update); optax's own optimizers can be
-    passed wherever this one is."""
-
-    learning_rate: float = 1e-2
-    b1: float = 0.9
-    b2: float = 0.999
-    eps: float = 1e-8
-
-    def init(self, theta):
-        zeros = jax.tree.map(jnp.zeros_like, theta)
-        return (jnp.zeros((), jnp.int32), zeros, zeros)
-
-    def update(self, grads, state, params=None):
-        k, m, v = state
-        k = k + 1
-        m = jax.tree.map(lambda a, g: self.b1 * a + (1 - self.b1) * g, m, grads)
-        v = jax.tree.map(lambda a, g: self.b2 * a + (1 - self.b2) * g * g, v, grads)
-        c1 = 1 - self.b1 ** k.astype(jnp.result_type(float))
-        c2 = 1 - self.b2 ** k.astype(jnp.result_type(float))
-        upd = jax.tree.map(lambda a, b: -self.learning_rate * (a / c1) / (jnp.sqrt(b / c2) + self.eps), m, v)
-        return upd, (k, m, v)
+def GradientDescent(learning_rate: float = 1e-2) -> optax.GradientTransformation:  # noqa: N802
+    """Plain gradient descent ``theta <- theta - learning_rate * grad``: ``optax.sgd``."""
+    return optax.sgd(learning_rate)
 
 
 class FitResult(NamedTuple):
@@ -364,14 +341,13 @@ class FitResult(NamedTuple):
     history: jax.Array
 
 
-def fit(loss: Callable, theta0, *, optimizer=None, steps: int = 1000) -> FitResult:
+def fit(loss: Callable, theta0, *, optimizer: optax.GradientTransformation | None = None, steps: int = 1000) -> FitResult:
     """Minimise a differentiable ``loss(theta)`` from ``theta0`` (any pytree) with ``jax.grad``.
 
-    ``optimizer`` follows optax's protocol (``init(theta)``, ``update(grads, state, theta)``):
-    :class:`Adam` (default, learning rate 1e-2), :class:`GradientDescent` or an optax transformation. The
-    steps run in one compiled ``lax.scan``.
+    ``optimizer``: any optax ``GradientTransformation`` (default ``optax.adam(1e-2)``; :func:`Adam` and
+    :func:`GradientDescent` are shorthands). The steps run in one compiled ``lax.scan``.
     """
-    optimizer = optimizer or Adam(1e-2)
+    optimizer = optimizer or optax.adam(1e-2)
     value_and_grad = jax.value_and_grad(loss)
 
     @jit
@@ -380,8 +356,7 @@ def fit(loss: Callable, theta0, *, optimizer=None, steps: int = 1000) -> FitResu
             theta, state = carry
             value, grads = value_and_grad(theta)
             updates, state = optimizer.update(grads, state, theta)
-            theta = jax.tree.map(lambda a, b: a + b, theta, updates)
-            return (theta, state), value
+            return (optax.apply_updates(theta, updates), state), value
 
         (theta, _), history = jax.lax.scan(step, (theta0, optimizer.init(theta0)), None, length=steps)
         return theta, history
@@ -404,7 +379,7 @@ def quantity_loss(dyn: Dynamics, name: str, inputs: Sequence, target, to_params:
     w = 1.0 if weights is None else jnp.asarray(weights)
 
     def loss(theta):
-        p = _param_array(dyn, to_params(theta), target.dtype)
+        p = dyn.param_vector(to_params(theta), target.dtype)
         out = jax.vmap(raw, in_axes=(*([0] * len(inputs)), None))(*inputs, p)
         r = out - target
         return jnp.mean(w * r * r)

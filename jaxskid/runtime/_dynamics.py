@@ -2,105 +2,73 @@
 
 ``Dynamics`` knows only JAX and the metadata of a generated module; it never touches SymPy. Every
 function takes the state arrays of its quantity (shape ``(n,)``, or ``(..., n)`` for a batch, which is
-mapped with ``jax.vmap``), then ``params``: ``None`` for the defaults, a dict name -> value (a pytree, so
-``jax.grad`` with respect to it works), or a vector in the order of :attr:`Dynamics.parameters`.
+mapped with ``jax.vmap``), then ``params``: ``None`` for the defaults, a dict name -> value (missing names
+take their defaults; a pytree, so ``jax.grad`` with respect to it works), or a vector in the order of
+:attr:`Dynamics.parameters`. Leading axes of the parameters are a batch too: they broadcast against the
+states' (``dyn.mass_matrix(q_batch, p_batch)``).
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RequestError, ShapeError
-
-
-def compiler_options() -> dict:
-    """XLA options for the generated functions.
-
-    On CPU, XLA's newer fusion emitters compile the long straight-line programs of jaxskid slowly and
-    into slow code (the second time derivative of tau on the Panda: 1.45 ms against 270 ns per state;
-    the Coriolis matrix: 747 us against 15 us), so the classic emitters are used there.
-    """
-    return {"xla_cpu_use_fusion_emitters": False} if jax.default_backend() == "cpu" else {}
+from .._errors import ShapeError
+from ..model._parameters import ParameterLayout
+from ._base import QuantitySet
+from ._batching import batch_shape, float_arrays, vmapped
+from ._forward import forward_dynamics
+from ._jit import compiler_options, jit, outermost  # noqa: F401  (compiler_options, jit: imported from here too)
+from ._parameters import param_array
 
 
 def _plain(body: Callable, same: Callable, *args):
     return body(*args, same)
 
 
-def _traced(tree) -> bool:
-    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
-
-
-def _outermost(top: Callable, nested: Callable, **jit_kwargs) -> Callable:
-    """Call ``top`` jitted with :func:`compiler_options` from Python, ``nested`` plainly jitted inside a
-    caller's trace (JAX accepts compiler options only on a top-level jit)."""
-    nested_jit = jax.jit(nested, **jit_kwargs)
-    top_jit: list = []  # compiled on first use: compiler_options() asks for the backend
-
-    def call(*args, **kwargs):
-        if _traced((args, kwargs)):
-            return nested_jit(*args, **kwargs)
-        if not top_jit:
-            top_jit.append(jax.jit(top, compiler_options=compiler_options(), **jit_kwargs))
-        return top_jit[0](*args, **kwargs)
-
-    return call
-
-
-def jit(fn: Callable | None = None, **jit_kwargs) -> Callable:
-    """``jax.jit`` with :func:`compiler_options` where they may be given: at the outermost call.
-
-    Wrap your own functions of jaxskid's quantities with it (as jaxskid wraps its rollouts and fits): with
-    XLA's default CPU emitters, the long straight-line programs compile into code up to 1000x slower.
-    JAX accepts compiler options only on a top-level jit, so inside a caller's trace this is a plain
-    ``jax.jit`` (and the caller's options apply). Keyword arguments go to ``jax.jit``; usable as a
-    decorator, with or without them.
-    """
-    if fn is None:
-        return functools.partial(jit, **jit_kwargs)
-    return functools.wraps(fn)(_outermost(fn, fn, **jit_kwargs))
-
-
-class Dynamics:
+class Dynamics(QuantitySet):
     """Lowered quantities of one robot. Build it with :func:`jaxskid.lower`.
 
     The quantity functions are attributes named after the quantities (``mass_matrix``,
     ``inverse_dynamics``, ...); see ``quantities`` for what this object has.
+
+    Args:
+        namespace: the executed generated module (its ``METADATA`` and functions).
+        source: the module's source text.
+        path: where the module is cached, if it is.
+        catalogue: the names of every quantity jaxskid knows, so that asking for one that was not
+            lowered says so (see :class:`~jaxskid.runtime._base.QuantitySet`).
     """
 
-    def __init__(self, namespace: dict, source: str, path=None):
+    _made = "lowered"
+    _remedy = "jaxskid.lower(robot, quantities=[..., {name!r}])"
+
+    def __init__(self, namespace: dict, source: str, path=None, catalogue: Collection[str] = ()):
         meta = namespace["METADATA"]
+        quantities = meta["quantities"]
+        super().__init__(
+            robot_name=meta["robot"],
+            joint_names=meta["joint_names"],
+            frame_names=meta["frame_names"],
+            end_effectors=meta["end_effectors"],
+            layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
+            signatures={k: (m["args"], m["shape"]) for k, m in quantities.items()},
+            catalogue=catalogue,
+        )
         self.source = source
         self.path = path
-        self.robot_name: str = meta["robot"]
-        self.joint_names: tuple[str, ...] = tuple(meta["joint_names"])
-        self.frame_names: tuple[str, ...] = tuple(meta["frame_names"])
-        self.end_effectors: tuple[str, ...] = tuple(meta["end_effectors"])
-        self.parameters: tuple[str, ...] = tuple(meta["parameters"])
-        self.defaults: dict[str, float] = dict(meta["defaults"])
-        self.n_dof = len(self.joint_names)
-        self._meta = meta["quantities"]
-        self._raw: dict[str, Callable] = {name: namespace[name] for name in self._meta}
+        self._meta = quantities
+        self._raw: dict[str, Callable] = {name: namespace[name] for name in quantities}
         same = namespace["_same"]
         self._plain: dict[str, Callable] = {
-            name: functools.partial(_plain, namespace["_" + name], same) for name in self._meta
+            name: functools.partial(_plain, namespace["_" + name], same) for name in quantities
         }
         self._jitted: dict[str, Callable] = {}
-
-    # ------------------------------------------------------------------ introspection
-    @property
-    def quantities(self) -> tuple[str, ...]:
-        return tuple(self._meta)
-
-    def signature(self, name: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
-        """(argument names, output shape) of a quantity."""
-        m = self._meta[name]
-        return tuple(m["args"]), tuple(m["shape"])
+        self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
 
     def raw(self, name: str, batched: bool = True) -> Callable:
         """The generated function for one state, ``f(*state, p)`` with ``p`` a parameter vector.
@@ -112,75 +80,41 @@ class Dynamics:
         """
         return self._raw[name] if batched else self._plain[name]
 
-    def default_params(self) -> dict[str, float]:
-        return dict(self.defaults)
-
-    def param_vector(self, params=None, dtype=None) -> jax.Array:
-        """Parameters as a vector in the order of :attr:`parameters` (defaults fill in for None)."""
-        if params is None:
-            missing = [k for k in self.parameters if k not in self.defaults]
-            if missing:
-                raise RequestError(f"parameter(s) {', '.join(missing)} have no default value; pass params")
-            vec = jnp.asarray(np.array([self.defaults[k] for k in self.parameters], dtype=np.float64))
-        elif isinstance(params, Mapping):
-            missing = [k for k in self.parameters if k not in params]
-            if missing:
-                raise RequestError(
-                    f"params is missing {', '.join(missing)} (expected the names in Dynamics.parameters)"
-                )
-            if not self.parameters:
-                vec = jnp.zeros((0,))
-            else:
-                vec = jnp.stack([jnp.asarray(params[k]) for k in self.parameters])
-        else:
-            vec = jnp.asarray(params)
-            if vec.shape != (len(self.parameters),):
-                raise ShapeError(f"params: expected a dict or a vector of shape ({len(self.parameters)},), got {vec.shape}")
-        return vec if dtype is None else vec.astype(dtype)
+    def _packed(self, params, where: str = "params"):
+        """As :meth:`QuantitySet._packed`, and a dict's vector is kept on the device too: passed to a
+        jitted function, a host array costs a transfer per call (about 20 us), a device array does not."""
+        packed = super()._packed(params, where)
+        if not (isinstance(params, Mapping) and isinstance(packed, np.ndarray)):
+            return packed
+        vector, on_device = self._on_device
+        if vector is not packed:  # a new dict (its packed vector is read-only and new: identity tells)
+            on_device = jnp.asarray(packed)
+            if isinstance(on_device, jax.core.Tracer):  # inside a caller's trace: a constant of it
+                return on_device
+            self._on_device = (packed, on_device)
+        return on_device
 
     # ------------------------------------------------------------------ the functions
     def __getattr__(self, name: str):
-        if name.startswith("_"):
-            raise AttributeError(name)
-        if name in self._meta:
+        if not name.startswith("_") and name in self._signatures:
             fn = self._jitted.get(name)
             if fn is None:
                 fn = self._jitted[name] = self._make(name)
             return fn
-        from ..equations._derive import QUANTITIES
+        return super().__getattr__(name)
 
-        if name in QUANTITIES:
-            raise RequestError(
-                f"{name!r} was not lowered for this robot; lowered: {', '.join(self.quantities)}. "
-                f"Ask for it with jaxskid.lower(robot, quantities=[..., {name!r}])"
-            )
-        raise AttributeError(f"'Dynamics' object has no attribute {name!r}")
-
-    def _make(self, name: str) -> Callable:
-        args, shape = self.signature(name)
+    def _evaluate(self, name: str) -> Callable:
+        """``call(*state, params, pair)``: the quantity on one state or a batch, with ``params`` already
+        packed (:meth:`_packed`) and converted here, inside the jitted function."""
+        args, _ = self.signature(name)
         raw, plain = self._raw[name], self._plain[name]
-        n = self.n_dof
-        arg_shapes = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (n,)) for a in args}
+        cores = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (self.n_dof,)) for a in args}
+        n_params = (len(self.parameters),)
 
         def call(*state, params=None, pair=False):
-            arrays = [jnp.asarray(x) for x in state]
-            batch = None
-            for a, x in zip(args, arrays):
-                want = arg_shapes[a]
-                if x.shape[x.ndim - len(want):] != want or x.ndim < len(want):
-                    raise ShapeError(
-                        f"{name}: {a}: expected shape {want} (or (..., {', '.join(map(str, want))}) for a batch), got {x.shape}"
-                    )
-                lead = x.shape[: x.ndim - len(want)]
-                if batch is None:
-                    batch = lead
-                elif lead != batch:
-                    raise ShapeError(f"{name}: batch shapes differ: {batch} and {lead} for {a}")
-            dtype = jnp.result_type(*arrays) if arrays else None
-            if dtype is not None and not jnp.issubdtype(dtype, jnp.floating):
-                dtype = jnp.result_type(float)
-                arrays = [x.astype(dtype) for x in arrays]
-            p = self.param_vector(params, dtype)
+            arrays, dtype = float_arrays(state)
+            p = param_array(self.layout, params, dtype)
+            batch = batch_shape(name, [(a, x.shape, cores[a]) for a, x in zip(args, arrays)], [("params", p.shape, n_params)])
             if not batch and pair:
                 # One state alone: XLA turns the broadcast inputs back into scalars and splits the function
                 # into a kernel per shared value (20 for the Panda's mass matrix: 117 us a call on 2
@@ -190,21 +124,22 @@ class Dynamics:
                 return jax.vmap(raw, in_axes=(*([0] * len(pairs)), None))(*pairs, p)[0]
             if not batch:
                 return plain(*arrays, p)
-            flat = [x.reshape((-1, *arg_shapes[a])) for a, x in zip(args, arrays)]
-            out = jax.vmap(raw, in_axes=(*([0] * len(flat)), None))(*flat, p)
-            return out.reshape((*batch, *shape))
+            return vmapped(raw, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)])
 
-        if name == "forward_kinematics":
-            frames = self.frame_names
+        if name != "forward_kinematics":
+            return call
+        frames = self.frame_names
 
-            def call_fk(*state, params=None, pair=False):
-                poses = call(*state, params=params, pair=pair)
-                return {f: poses[..., k, :, :] for k, f in enumerate(frames)}
+        def call_fk(*state, params=None, pair=False):
+            poses = call(*state, params=params, pair=pair)
+            return {f: poses[..., k, :, :] for k, f in enumerate(frames)}
 
-            body = call_fk
-        else:
-            body = call
-        compiled = _outermost(functools.partial(body, pair=True), body)
+        return call_fk
+
+    def _make(self, name: str) -> Callable:
+        args, shape = self.signature(name)
+        body = self._evaluate(name)
+        compiled = outermost(functools.partial(body, pair=True), body)
         takes_wrench = name == "inverse_dynamics"
 
         def fn(*state, params=None, wrench=None):
@@ -214,6 +149,8 @@ class Dynamics:
                 *state, params = state
             if len(state) != len(args):
                 raise ShapeError(f"{name} takes ({', '.join(args)}, params), got {len(state)} state argument(s)")
+            if params is not None:  # None stays: the defaults become constants of the compiled program
+                params = self._packed(params)
             out = compiled(*state, params=params)
             if wrench is not None:
                 if not takes_wrench:
@@ -235,8 +172,6 @@ class Dynamics:
         ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``) with a
         Cholesky-type solve; see :func:`jaxskid.forward_dynamics`.
         """
-        from ..apps._simulate import forward_dynamics
-
         return forward_dynamics(self, q, qd, tau, params, wrench)
 
     def __repr__(self) -> str:

@@ -1,0 +1,103 @@
+"""What every set of evaluated quantities of one robot shares: its metadata, its parameters, its errors.
+
+:class:`jaxskid.Dynamics` (JAX functions) and :class:`jaxskid.NativeDynamics` (compiled C) both hold the
+quantities of one robot, each as a function of its state arrays and ``params``. The parameters follow one
+rule (:class:`jaxskid.model.ParameterLayout`): ``None`` for the defaults, a mapping name -> value in which
+missing names take their defaults and unknown names are errors, or a vector in the order of
+:attr:`QuantitySet.parameters`, whose leading axes are a batch.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping, Sequence
+
+import jax
+
+from .._errors import RequestError
+from ..model._parameters import ParameterLayout
+from ._parameters import HostParameters, param_array
+
+
+class QuantitySet:
+    """The quantities of one robot, with its metadata and parameters.
+
+    Subclasses make the quantity functions and set ``_made`` (how the quantities were made, e.g.
+    ``"lowered"``) and ``_remedy`` (the call that makes a missing one, with ``{name!r}`` for its name):
+    asking for a quantity of the catalogue that was not made raises :class:`RequestError` with them.
+
+    Args:
+        robot_name: the robot's name.
+        joint_names: ``(n_dof,)`` joint names, in the order of ``q``.
+        frame_names: the frames ``forward_kinematics`` returns.
+        end_effectors: the end-effector frames, in the order of the wrench rows.
+        layout: the parameter names (the order of the vector) and their defaults.
+        signatures: quantity name -> (argument names, output shape), for the quantities made.
+        catalogue: the names of every quantity jaxskid knows (:data:`jaxskid.QUANTITIES`), for the error
+            that names a quantity that exists but was not made.
+    """
+
+    _made = "made"
+    _remedy = "{name!r}"
+
+    def __init__(
+        self,
+        *,
+        robot_name: str,
+        joint_names: Sequence[str],
+        frame_names: Sequence[str],
+        end_effectors: Sequence[str],
+        layout: ParameterLayout,
+        signatures: Mapping[str, tuple[Sequence[str], Sequence[int]]],
+        catalogue: Collection[str] = (),
+    ):
+        self.robot_name: str = robot_name
+        self.joint_names: tuple[str, ...] = tuple(joint_names)
+        self.frame_names: tuple[str, ...] = tuple(frame_names)
+        self.end_effectors: tuple[str, ...] = tuple(end_effectors)
+        self.layout: ParameterLayout = layout
+        self.parameters: tuple[str, ...] = layout.names
+        self.defaults: dict[str, float] = {k: layout.defaults[k] for k in layout.names if k in layout.defaults}
+        self.n_dof: int = len(self.joint_names)
+        self._signatures = {k: (tuple(a), tuple(s)) for k, (a, s) in signatures.items()}
+        self._catalogue = frozenset(catalogue)
+        self._host = HostParameters(layout)
+
+    @property
+    def quantities(self) -> tuple[str, ...]:
+        """The names of the quantities made, in the catalogue's order."""
+        return tuple(self._signatures)
+
+    def signature(self, name: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
+        """(argument names, output shape) of a quantity."""
+        return self._signatures[name]
+
+    def default_params(self) -> dict[str, float]:
+        """Parameter name -> default value, for the parameters that have one."""
+        return dict(self.defaults)
+
+    def param_vector(self, params=None, dtype=None) -> jax.Array:
+        """The parameters as a JAX array ``(..., n_params)`` in the order of :attr:`parameters`.
+
+        ``params``: ``None`` (the defaults), a mapping name -> value (missing names take their defaults;
+        an unknown name raises :class:`RequestError` naming the closest valid ones; values may carry batch
+        axes), or an array ``(..., n_params)``. ``dtype``: the result's (default: float64 with x64 enabled).
+        """
+        return param_array(self.layout, self._packed(params), dtype)
+
+    def _packed(self, params, where: str = "params"):
+        """``params`` with concrete values packed on the host by ``self._host`` (:class:`HostParameters`):
+        a float64 NumPy array (``None`` gives the read-only default vector), or ``params`` unchanged where
+        they hold JAX arrays or tracers (:func:`param_array` converts those inside a jitted function)."""
+        host = self._host.pack(params, where)
+        return params if host is None else host
+
+    def __getattr__(self, name: str):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        if name in self._catalogue:
+            made = self._made
+            raise RequestError(
+                f"{name!r} was not {made} for this robot; {made}: {', '.join(self.quantities)}. "
+                f"Ask for it with {self._remedy.format(name=name)}"
+            )
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
