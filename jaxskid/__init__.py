@@ -24,7 +24,7 @@ from .description._yaml_schema import DescriptionExtras, parse_description, read
 from .description._yaml_writer import robot_to_dict, write_description
 from .description._report import describe, draw_tree
 
-__version__ = "0.1.0"
+from ._version import __version__
 
 __all__ = [
     "DEFAULT_QUANTITIES",

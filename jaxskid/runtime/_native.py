@@ -16,13 +16,14 @@ never touches SymPy or the C source's origin.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 
 import numpy as np
 
-from .._errors import RequestError, ShapeError
+from .._errors import ShapeError
 from ..model._parameters import ParameterLayout
+from ._base import QuantitySet
 
 
 # ---------------------------------------------------------------------------------------------- calling
@@ -67,64 +68,8 @@ def _arr(x, shape, what):
 
 
 # ---------------------------------------------------------------------------------------------- metadata
-class _Metadata:
-    """The metadata of one robot's quantities, as :class:`jaxskid.Dynamics` holds them: the names of the
-    robot, its joints, frames and end-effectors, the parameters (:class:`ParameterLayout`, the one
-    parameter rule) and each quantity's signature. Asking for a quantity of ``catalogue`` that was not
-    made raises :class:`RequestError` naming ``_made`` and ``_remedy``.
-
-    Args:
-        robot_name: the robot's name.
-        joint_names: ``(n_dof,)`` joint names, in the order of ``q``.
-        frame_names: the frames ``forward_kinematics`` returns.
-        end_effectors: the end-effector frames, in the order of the wrench rows.
-        layout: the parameter names (the order of the vector) and their defaults.
-        signatures: quantity name -> (argument names, output shape), for the quantities made.
-        catalogue: the names of every quantity jaxskid knows (:data:`jaxskid.QUANTITIES`).
-    """
-
-    _made = "made"
-    _remedy = "{name!r}"
-
-    def __init__(self, *, robot_name: str, joint_names: Sequence[str], frame_names: Sequence[str],
-                 end_effectors: Sequence[str], layout: ParameterLayout,
-                 signatures: Mapping[str, tuple[Sequence[str], Sequence[int]]], catalogue: Collection[str] = ()):
-        self.robot_name: str = robot_name
-        self.joint_names: tuple[str, ...] = tuple(joint_names)
-        self.frame_names: tuple[str, ...] = tuple(frame_names)
-        self.end_effectors: tuple[str, ...] = tuple(end_effectors)
-        self.layout: ParameterLayout = layout
-        self.parameters: tuple[str, ...] = layout.names
-        self.defaults: dict[str, float] = {k: layout.defaults[k] for k in layout.names if k in layout.defaults}
-        self.n_dof: int = len(self.joint_names)
-        self._signatures = {k: (tuple(a), tuple(s)) for k, (a, s) in signatures.items()}
-        self._catalogue = frozenset(catalogue)
-
-    @property
-    def quantities(self) -> tuple[str, ...]:
-        return tuple(self._signatures)
-
-    def signature(self, name: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
-        """(argument names, output shape) of a quantity."""
-        return self._signatures[name]
-
-    def default_params(self) -> dict[str, float]:
-        """Parameter name -> default value, for the parameters that have one."""
-        return dict(self.defaults)
-
-    def __getattr__(self, name: str):
-        if name.startswith("_"):
-            raise AttributeError(name)
-        if name in self._catalogue:
-            raise RequestError(
-                f"{name!r} was not {self._made} for this robot; {self._made}: {', '.join(self.quantities)}. "
-                f"Ask for it with {self._remedy.format(name=name)}"
-            )
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
-
 def _metadata_fields(meta: Mapping) -> dict:
-    """The keyword arguments of :class:`_Metadata` from a ``METADATA`` dict
+    """The keyword arguments of :class:`QuantitySet` from a ``METADATA`` dict
     (:meth:`jaxskid.codegen.Layout.metadata`)."""
     return dict(
         robot_name=meta["robot"], joint_names=meta["joint_names"], frame_names=meta["frame_names"],
@@ -134,7 +79,7 @@ def _metadata_fields(meta: Mapping) -> dict:
 
 
 # ---------------------------------------------------------------------------------------------- native
-class NativeDynamics(_Metadata):
+class NativeDynamics(QuantitySet):
     """Compiled quantities of one robot for single states. Build it with :func:`jaxskid.compile_native`.
 
     Each quantity is a method ``name(*state, params=None) -> numpy array`` for ONE state: every state
@@ -178,11 +123,8 @@ class NativeDynamics(_Metadata):
     def param_vector(self, params=None) -> np.ndarray:
         """Parameters as a contiguous float64 vector in the order of :attr:`parameters`: ``None`` for the
         defaults, a dict (missing names take their defaults; an unknown name is an error) or a vector."""
-        if params is None and self.layout.has_all_defaults:
-            return self._default_vector
-        if params is None or isinstance(params, Mapping):
-            return np.array(self.layout.values(params), dtype=np.float64)
-        return _arr(params, (len(self.parameters),), "params")
+        packed = self._host.pack(params)  # the parameter rule; None for JAX values
+        return _arr(params if packed is None else packed, (len(self.parameters),), "params")
 
     def _make(self, name: str, args: tuple[str, ...], shape: tuple[int, ...], function: Callable, ffi) -> Callable:
         """The method of one quantity, made from a template (see above)."""
