@@ -1,7 +1,7 @@
 """Numerical stability at the extremes, against a 50-digit mpmath evaluation of the same expressions.
 
-Reference: ``jaxskid._reference.mp_reference`` evaluates the derived program at 50 digits at the same (float32-
-representable) inputs. Bound: ``jaxskid._reference.error_bound`` gives, for every output entry, the a-priori
+Reference: ``jaxskid.testing._reference.mp_reference`` evaluates the derived program at 50 digits at the same (float32-
+representable) inputs. Bound: ``jaxskid.testing._reference.error_bound`` gives, for every output entry, the a-priori
 bound ``gamma_D * F_abs`` (Higham, "Accuracy and Stability of Numerical Algorithms", 2002, sec. 3.1, Lemma 3.1):
 the program uses only +, x and sin/cos of inputs, so the computed value is the exact value of the program with
 every operation perturbed by (1 + delta), |delta| <= u; hence |computed - exact| <= gamma_D * F_abs, with D the
