@@ -56,12 +56,17 @@ class RK4:
         def axpy(a, dy, base):
             return jax.tree.map(lambda u, v: u + a * v, base, dy)
 
-        k1, aux = f(t, y)
-        k2, _ = f(t + dt / 2, axpy(dt / 2, k1, y))
-        k3, _ = f(t + dt / 2, axpy(dt / 2, k2, y))
-        k4, _ = f(t + dt, axpy(dt, k3, y))
-        incr = jax.tree.map(lambda a, b, c, d: (a + 2 * b + 2 * c + d) / 6, k1, k2, k3, k4)
-        return axpy(dt, incr, y), aux
+        def stage(carry, cb):
+            k, acc = carry
+            c, b = cb
+            ki, aux = f(t + c * dt, axpy(c * dt, k, y))
+            return (ki, axpy(b, ki, acc)), aux
+
+        zero = jax.tree.map(jnp.zeros_like, y)
+        dtype = jnp.result_type(dt)
+        cb = (jnp.asarray([0.0, 0.5, 0.5, 1.0], dtype), jnp.asarray([1 / 6, 1 / 3, 1 / 3, 1 / 6], dtype))
+        (_, incr), aux = jax.lax.scan(stage, (zero, zero), cb)
+        return axpy(dt, incr, y), jax.tree.map(lambda a: a[0], aux)
 
 
 # ---------------------------------------------------------------------------------------- controllers

@@ -86,6 +86,34 @@ def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
     return _assemble(x, b.dtype)
 
 
+def _with_implicit_derivative(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
+    """``solve`` with the derivative of the equations of motion it solves, ``ID(q, qd, qdd, p) = tau``:
+
+        d qdd = M(q)^-1 (d tau - dID/dq dq - dID/dqd dqd - Y(q, qd, qdd) dp),
+
+    one forward-mode pass of inverse dynamics at the computed ``qdd`` and one solve with M (the implicit
+    function theorem; Carpentier & Mansard, "Analytical derivatives of rigid body dynamics algorithms",
+    RSS 2018, sec. IV). Reverse mode transposes it: one reverse pass of inverse dynamics.
+    """
+
+    @jax.custom_jvp
+    def fd(q, qd, tau, p):
+        return solve(q, qd, tau, p)
+
+    @jax.checkpoint
+    def tangent(q, qd, a, p, dq, dqd, dtau, dp):
+        _, did = jax.jvp(lambda q, qd, p: inverse(q, qd, a, p), (q, qd, p), (dq, dqd, dp))
+        return ldl_solve(mass(q, p), dtau - did)
+
+    @fd.defjvp
+    def rule(primals, tangents):
+        q, qd, tau, p = primals
+        a = fd(q, qd, tau, p)
+        return a, tangent(q, qd, a, p, *tangents)
+
+    return fd
+
+
 def require_solver(dyn, what: str) -> None:
     """Raise :class:`RequestError` unless ``dyn`` has the quantities :func:`accelerations` needs."""
     have = set(dyn.quantities)
@@ -127,6 +155,9 @@ def accelerations(dyn, batched: bool = True) -> Callable:
 
         def solve(q, qd, tau, p):
             return ldl_solve(mass(q, p), tau - bias(q, qd, p))
+
+    if {"mass_matrix", "inverse_dynamics"} <= set(dyn.quantities):
+        solve = _with_implicit_derivative(solve, dyn.raw("mass_matrix", False), dyn.raw("inverse_dynamics", False))
 
     def qdd(q, qd, tau, p, wrench=None):
         if wrench is not None:
