@@ -61,7 +61,10 @@ def lower(
         model: a :class:`Robot`, or :class:`Equations` already derived (they are printed as they are; the
             cache is shared with the robot's request).
         quantities: names from :data:`jaxskid.QUANTITIES`; ``None`` for :data:`jaxskid.DEFAULT_QUANTITIES`
-            (for ``Equations``: every quantity they hold), ``"all"`` for every quantity.
+            (for ``Equations``: every quantity they hold), ``"all"`` for every quantity. For a robot, the
+            quantities a requested one is differentiated with come too: ``forward_dynamics`` brings
+            ``mass_matrix``, ``inverse_dynamics`` and ``inverse_dynamics_vjp``, which give its exact
+            derivatives (:mod:`jaxskid.runtime._implicit`) for gradients through rollouts.
         symbolic: the parameters that stay inputs of the generated functions; every other parameter is
             replaced by its default value (the ``assignments``). ``None`` keeps all parameters symbolic.
             Only for a robot: substitute before deriving for ``Equations``.
@@ -79,6 +82,7 @@ def lower(
     else:
         robot = model if symbolic is None else model.keep_symbolic(symbolic)
         names, options = resolve(robot, quantities), options or Options()
+        names = resolve(robot, [*names, *(k for n in names for k in QUANTITIES[n].derivatives)])
     key = module_key(robot, names, options)
     path = entry_path(cache_dir, robot.name, key) if cache else None
     found = read_entry(path, key) if path is not None else None

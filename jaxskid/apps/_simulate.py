@@ -21,7 +21,9 @@ from jax.sharding import Mesh, PartitionSpec
 
 from ..runtime._dynamics import Dynamics
 from ..runtime._batching import batch_shape, float_arrays
+from .._errors import RequestError
 from ..runtime._forward import accelerations, require_solver
+from ..runtime._implicit import AUTODIFF
 from ..runtime._jit import jit
 
 
@@ -118,9 +120,9 @@ class Trajectory(NamedTuple):
         return self.x[..., self.x.shape[-1] // 2:]
 
 
-def _rollout_one(dyn, controller, integrator, steps, x0, p, u, dt, batched=False) -> Trajectory:
+def _rollout_one(dyn, controller, integrator, steps, autodiff, x0, p, u, dt, batched=False) -> Trajectory:
     n = dyn.n_dof
-    qdd = accelerations(dyn, batched)
+    qdd = accelerations(dyn, batched, autodiff)
     z0 = controller.init(x0) if controller is not None else ()
 
     def step(carry, u_k):
@@ -146,12 +148,13 @@ def _rollout_one(dyn, controller, integrator, steps, x0, p, u, dt, batched=False
     return Trajectory(t, x, taus, z)
 
 
-_rollout_single = jit(_rollout_one, static_argnames=("dyn", "controller", "integrator", "steps"))
+_rollout_single = jit(_rollout_one, static_argnames=("dyn", "controller", "integrator", "steps", "autodiff"))
 
 
-@partial(jit, static_argnames=("dyn", "controller", "integrator", "steps", "p_batched", "u_batched", "devices"))
-def _rollout_batch(dyn, controller, integrator, steps, p_batched, u_batched, devices, x0, p, u, dt):
-    one = partial(_rollout_one, dyn, controller, integrator, steps, batched=True)
+@partial(jit, static_argnames=("dyn", "controller", "integrator", "steps", "autodiff", "p_batched", "u_batched",
+                               "devices"))
+def _rollout_batch(dyn, controller, integrator, steps, autodiff, p_batched, u_batched, devices, x0, p, u, dt):
+    one = partial(_rollout_one, dyn, controller, integrator, steps, autodiff, batched=True)
     run = jax.vmap(one, in_axes=(0, 0 if p_batched else None, 0 if u_batched else None, None))
     if len(devices) > 1:
         mesh = Mesh(np.asarray(devices), ("batch",))
@@ -173,6 +176,7 @@ def rollout(
     integrator=RK4(),
     params=None,
     *,
+    autodiff: str = "reverse",
     devices: Sequence[jax.Device] | None = None,
 ) -> Trajectory:
     """Simulate ``M qdd + C qd + Q_grav = tau`` from ``x0 = (q0, qd0)`` for ``steps`` steps of ``dt``.
@@ -189,6 +193,10 @@ def rollout(
         integrator: :class:`RK4` or :class:`SemiImplicitEuler` (any object with ``step(f, t, y, dt)``).
         params: as for :func:`forward_dynamics`; ``(..., n_params)`` or a dict of batched values pairs one
             parameter set with each rollout of a batch (batch axes broadcast against those of ``x0``).
+        autodiff: how JAX differentiates the rollout: ``"reverse"`` (``jax.grad``, ``jax.vjp``: each step's
+            derivative is the closed-form vector-Jacobian product of inverse dynamics and one solve with M,
+            see :mod:`jaxskid.runtime._implicit`) or ``"forward"`` (``jax.jvp``, ``jax.jacfwd``; reverse
+            mode works too, more slowly). As diffrax's ``adjoint=ForwardMode()``: forward mode needs asking.
         devices: where a batch runs; default ``jax.local_devices()``. With several devices the batch is
             split across them (``jax.shard_map`` over a one-axis mesh; padded to a multiple of their
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
@@ -201,6 +209,8 @@ def rollout(
     """
     n = dyn.n_dof
     require_solver(dyn, "rollout")
+    if autodiff not in AUTODIFF:
+        raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, AUTODIFF))}, got {autodiff!r}")
     steps = int(steps)
     controller, u = _controls(controls)
     arrays, dtype = float_arrays([x0] if u is None else [x0, u])
@@ -212,8 +222,8 @@ def rollout(
     batch = batch_shape("rollout", [("x0", x0.shape, (2 * n,))], extras)
     dt = jnp.asarray(dt, dtype)
     if not batch:
-        return _rollout_single(dyn, controller, integrator, steps, x0, p, u, dt)
-    return _rollout_spread(dyn, controller, integrator, steps, batch, devices, x0, p, u, dt)
+        return _rollout_single(dyn, controller, integrator, steps, autodiff, x0, p, u, dt)
+    return _rollout_spread(dyn, controller, integrator, steps, autodiff, batch, devices, x0, p, u, dt)
 
 
 def _controls(controls) -> tuple[Controller | None, jax.Array | None]:
@@ -225,7 +235,7 @@ def _controls(controls) -> tuple[Controller | None, jax.Array | None]:
     return None, jnp.asarray(controls)
 
 
-def _rollout_spread(dyn, controller, integrator, steps, batch, devices, x0, p, u, dt) -> Trajectory:
+def _rollout_spread(dyn, controller, integrator, steps, autodiff, batch, devices, x0, p, u, dt) -> Trajectory:
     """A batch of rollouts, flattened to one axis and split over ``devices`` (padded to a multiple)."""
     size = int(np.prod(batch))
     devices = tuple(devices) if devices is not None else tuple(jax.local_devices())
@@ -240,6 +250,7 @@ def _rollout_spread(dyn, controller, integrator, steps, batch, devices, x0, p, u
 
     p_batched, u_batched = p.ndim > 1, u is not None and u.ndim > 2
     out = _rollout_batch(
-        dyn, controller, integrator, steps, p_batched, u_batched, devices, flat(x0, 1, True), flat(p, 1), flat(u, 2), dt,
+        dyn, controller, integrator, steps, autodiff, p_batched, u_batched, devices, flat(x0, 1, True), flat(p, 1),
+        flat(u, 2), dt,
     )
     return jax.tree.map(lambda a: a[:size].reshape((*batch, *a.shape[1:])), out)

@@ -28,6 +28,8 @@ class QuantitySpec:
     equation: str
     doc: str
     needs_end_effector: bool = False
+    derivatives: tuple[str, ...] = ()
+    """Quantities the runtime differentiates this one with; :func:`jaxskid.lower` adds them to a request."""
 
 
 # ---------------------------------------------------------------------------------------------- builders
@@ -100,6 +102,10 @@ def _system(r: Robot) -> tuple[int, ...]:
 
 def _poses(r: Robot) -> tuple[int, ...]:
     return (len(r.frame_names), 4, 4)
+
+
+def _vjp(r: Robot) -> tuple[int, ...]:
+    return (2 * r.n_dof + len(r.parameters),)
 
 
 def _regressor(r: Robot) -> tuple[int, ...]:
@@ -263,12 +269,20 @@ _CATALOGUE = (
         "qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q))",
         "Forward dynamics in closed form: M = L^T D L factored symbolically with the tree's sparsity "
         "(Featherstone 2005), then solved by substitution. End-effector wrenches: pass tau - Q_ext.",
+        derivatives=("mass_matrix", "inverse_dynamics", "inverse_dynamics_vjp"),
     ),
     QuantitySpec(
         "regressor", ("q", "qd", "qdd"), _regressor, lambda d: _flat(sym.regressor(d)),
         "tau = Y(q, qd, qdd) pi",
         "Inertial-parameter regressor: tau is Y times the standard parameters pi (10 per body: m, m c, "
         "Ixx, Ixy, Iyy, Ixz, Iyz, Izz about the body frame origin), see jaxskid.standard_params.",
+    ),
+    QuantitySpec(
+        "inverse_dynamics_vjp", ("q", "qd", "qdd", "cotangent"), _vjp, sym.inverse_dynamics_vjp,
+        "(w^T dtau/dq, w^T dtau/dqd, w^T dtau/dp)",
+        "Vector-Jacobian product of inverse dynamics at fixed qdd, w = cotangent: the gradients of w^T tau "
+        "with respect to q, qd and the parameters, concatenated (2 n + n_params entries), by a symbolic "
+        "reverse sweep of the Newton-Euler program. It differentiates forward dynamics in rollouts.",
     ),
 )
 

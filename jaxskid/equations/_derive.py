@@ -28,6 +28,7 @@ _ARGUMENT_DOCS = {
     "q3d": "joint jerks",
     "q4d": "joint jounces",
     "tau": "joint forces",
+    "cotangent": "weights w of a vector-Jacobian product w^T d(joint forces)",
     "wrench": "end-effector wrenches (moment, force)",
     "wrench_d": "first time derivatives of the end-effector wrenches",
     "wrench_dd": "second time derivatives of the end-effector wrenches",
@@ -125,7 +126,7 @@ def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, 
 
 def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
     n, n_ee = robot.n_dof, len(robot.end_effectors)
-    shapes = {**{k: (n,) for k in (*STATE_ORDERS, "tau")}, **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
+    shapes = {**{k: (n,) for k in (*STATE_ORDERS, "tau", "cotangent")}, **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
     return {k: Argument(k, shape, inputs.by_name(k), _ARGUMENT_DOCS[k]) for k, shape in shapes.items()}
 
 

@@ -19,99 +19,11 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import RequestError
-from .._kernels import recip
 from ._batching import batch_shape, float_arrays, vmapped
 from ._jit import jit
+from ._implicit import differentiable
+from ._ldl import ldl_solve, materialize
 from ._parameters import param_array
-
-
-def _assemble(values: Sequence, dtype) -> jax.Array:
-    """A vector from scalars by a chain of ``where`` selects (the output form XLA fuses into one loop,
-    see :mod:`jaxskid.codegen._jax`); ``jnp.stack`` would split the computation into slow kernels."""
-    out = jnp.zeros((len(values),), dtype)
-    index = jnp.arange(len(values))
-    for k, v in enumerate(values):
-        out = jnp.where(index == k, v, out)
-    return out
-
-
-_reciprocal = recip
-"""``1 / d`` by Newton's iteration from a bit-level first guess, the same as in generated modules
-(:mod:`jaxskid._kernels`): XLA on CPU will not fuse a division whose result has several users, so
-each pivot reciprocal of the factorisation would cut the fused kernel in pieces that recompute their
-shared inputs (measured: 1.2 us instead of 0.9 us per Panda state, and 5 us with a division per entry)."""
-
-
-def _materialize(x: jax.Array) -> jax.Array:
-    """``x``, computed once. XLA on CPU fuses a producer made of cheap operations into every consumer
-    fusion, so chaining accelerations (the stages of RK4) recomputed each stage inside the next one's
-    kernels: 0.46 us per evaluation alone, 1.4 us per evaluation in a chain of four (3-DOF arm, batch
-    1024). A dot is never fused on CPU and ``optimization_barrier`` is dropped by the compiler, so
-    ``x @ I`` (n^2 multiply-adds) materialises ``x``."""
-    return x @ jnp.eye(x.shape[-1], dtype=x.dtype)
-
-
-def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
-    """Solve ``m x = b`` for one symmetric positive definite ``m`` (n, n) by ``m = L D L^T``, unrolled.
-
-    Square-root free Cholesky (Golub & Van Loan, Alg. 4.1.2), written entry by entry so that XLA fuses it
-    with the computation of ``m`` and ``b``; vmap it for a batch. A matrix that is not positive definite
-    (a pivot <= 0, e.g. from non-physical inertial parameters) gives nan, as ``jnp.linalg.cholesky`` does.
-    """
-    n = b.shape[-1]
-    lo = [[None] * n for _ in range(n)]
-    d, dinv = [None] * n, [None] * n
-    for j in range(n):
-        s = m[j, j]
-        for k in range(j):
-            s = s - lo[j][k] * lo[j][k] * d[k]
-        d[j], dinv[j] = s, jnp.where(s > 0, _reciprocal(s), jnp.nan)  # as jnp.linalg.cholesky: nan if not SPD
-        for i in range(j + 1, n):
-            s = m[i, j]
-            for k in range(j):
-                s = s - lo[i][k] * lo[j][k] * d[k]
-            lo[i][j] = s * dinv[j]
-    y = [None] * n
-    for i in range(n):  # L y = b
-        s = b[i]
-        for k in range(i):
-            s = s - lo[i][k] * y[k]
-        y[i] = s
-    x = [None] * n
-    for i in reversed(range(n)):  # D L^T x = y
-        s = y[i] * dinv[i]
-        for k in range(i + 1, n):
-            s = s - lo[k][i] * x[k]
-        x[i] = s
-    return _assemble(x, b.dtype)
-
-
-def _with_implicit_derivative(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
-    """``solve`` with the derivative of the equations of motion it solves, ``ID(q, qd, qdd, p) = tau``:
-
-        d qdd = M(q)^-1 (d tau - dID/dq dq - dID/dqd dqd - Y(q, qd, qdd) dp),
-
-    one forward-mode pass of inverse dynamics at the computed ``qdd`` and one solve with M (the implicit
-    function theorem; Carpentier & Mansard, "Analytical derivatives of rigid body dynamics algorithms",
-    RSS 2018, sec. IV). Reverse mode transposes it: one reverse pass of inverse dynamics.
-    """
-
-    @jax.custom_jvp
-    def fd(q, qd, tau, p):
-        return solve(q, qd, tau, p)
-
-    @jax.checkpoint
-    def tangent(q, qd, a, p, dq, dqd, dtau, dp):
-        _, did = jax.jvp(lambda q, qd, p: inverse(q, qd, a, p), (q, qd, p), (dq, dqd, dp))
-        return ldl_solve(mass(q, p), dtau - did)
-
-    @fd.defjvp
-    def rule(primals, tangents):
-        q, qd, tau, p = primals
-        a = fd(q, qd, tau, p)
-        return a, tangent(q, qd, a, p, *tangents)
-
-    return fd
 
 
 def require_solver(dyn, what: str) -> None:
@@ -136,12 +48,14 @@ def _bias(dyn, raw: Callable) -> Callable:
     return lambda q, qd, p: cor(q, qd, p) + grav(q, p)
 
 
-def accelerations(dyn, batched: bool = True) -> Callable:
+def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Callable:
     """The single-state function ``qdd(q, qd, tau, p, wrench=None)`` with ``p`` a parameter vector.
 
     With the quantity ``forward_dynamics`` lowered, this is the closed form (:mod:`jaxskid.symbolic._forward`);
     otherwise M and the bias are evaluated and solved by :func:`ldl_solve`. ``batched``: whether the
-    function will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`).
+    function will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`). ``autodiff``: how it is
+    differentiated, ``"forward"`` (forward and reverse mode) or ``"reverse"`` (reverse mode only, faster);
+    see :func:`jaxskid.runtime._implicit.differentiable`.
     """
     require_solver(dyn, "forward_dynamics")
 
@@ -156,13 +70,12 @@ def accelerations(dyn, batched: bool = True) -> Callable:
         def solve(q, qd, tau, p):
             return ldl_solve(mass(q, p), tau - bias(q, qd, p))
 
-    if {"mass_matrix", "inverse_dynamics"} <= set(dyn.quantities):
-        solve = _with_implicit_derivative(solve, dyn.raw("mass_matrix", False), dyn.raw("inverse_dynamics", False))
+    solve = differentiable(dyn, solve, batched, autodiff)
 
     def qdd(q, qd, tau, p, wrench=None):
         if wrench is not None:
             tau = tau - raw("external_torques")(q, wrench, p)
-        return _materialize(solve(q, qd, tau, p))
+        return materialize(solve(q, qd, tau, p))
 
     return qdd
 

@@ -12,11 +12,13 @@ derived together share their work. Each algorithm is a function of the derivatio
 * ``_coriolis``: the Christoffel-consistent Coriolis matrix;
 * ``_time_kinematics`` and ``_time_dynamics``: closed-form time derivatives (Müller & Kumar 2021);
 * ``_regressor``: the inertial-parameter regressor;
-* ``_forward``: forward dynamics by the symbolic sparse ``L^T D L`` of M.
+* ``_forward``: forward dynamics by the symbolic sparse ``L^T D L`` of M;
+* ``_adjoint``: reverse-mode differentiation of the tape (the vector-Jacobian product of inverse dynamics).
 
 The spatial algebra they share is :mod:`jaxskid.model._spatial`.
 """
 
+from ._adjoint import inverse_dynamics_vjp, vjp
 from ._coriolis import coriolis_matrix
 from ._crba import mass_matrix
 from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
@@ -56,6 +58,7 @@ __all__ = [
     "external_torques",
     "external_torques_derivative",
     "forward_dynamics",
+    "inverse_dynamics_vjp",
     "frame_hybrid_acceleration",
     "frame_hybrid_twist",
     "frame_motion",
@@ -72,4 +75,5 @@ __all__ = [
     "system_jacobian",
     "system_jacobian_dot",
     "twist",
+    "vjp",
 ]

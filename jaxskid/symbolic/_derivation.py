@@ -39,13 +39,15 @@ class Inputs:
     ``state[k]`` holds the k-th time derivative of the joint positions (``_q{i}``, ``_qd{i}``, ``_qdd{i}``,
     ``_q3d{i}``, ``_q4d{i}``), each of shape ``(n,)``; ``tau`` the joint forces ``_tau{i}``; ``wrenches[r]``
     the r-th time derivative of the end-effector wrenches (moment, force), one 6-tuple per end-effector
-    (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters.
+    (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters;
+    ``cotangent`` the weights ``_ct{i}`` of a vector-Jacobian product of joint forces (shape ``(n,)``).
     """
 
     state: tuple[tuple[sp.Symbol, ...], ...]
     tau: tuple[sp.Symbol, ...]
     wrenches: tuple[tuple[tuple[sp.Symbol, ...], ...], ...]
     params: tuple[sp.Symbol, ...]
+    cotangent: tuple[sp.Symbol, ...] = ()
 
     @classmethod
     def of(cls, robot: Robot) -> Inputs:
@@ -57,6 +59,7 @@ class Inputs:
             wrenches=(_wrench_symbols("_w", n_ee), _wrench_symbols("_wrench_d", n_ee),
                       _wrench_symbols("_wrench_dd", n_ee)),
             params=tuple(symbol(p) for p in robot.parameters),
+            cotangent=_symbols("_ct", n),
         )
 
     @property
@@ -72,7 +75,7 @@ class Inputs:
         return self.state[2]
 
     def by_name(self, name: str) -> tuple[sp.Symbol, ...]:
-        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"`` or one of
+        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"``, ``"cotangent"`` or one of
         :data:`WRENCH_ORDERS`), row-major."""
         if name in STATE_ORDERS:
             return self.state[STATE_ORDERS.index(name)]
@@ -80,6 +83,8 @@ class Inputs:
             return tuple(s for w in self.wrenches[WRENCH_ORDERS.index(name)] for s in w)
         if name == "tau":
             return self.tau
+        if name == "cotangent":
+            return self.cotangent
         raise KeyError(name)
 
 

@@ -1,0 +1,92 @@
+"""The derivative of forward dynamics, from the equations of motion it solves.
+
+Forward dynamics ``qdd = FD(q, qd, tau, p)`` solves ``ID(q, qd, qdd, p) = tau``. By the implicit function
+theorem (Carpentier & Mansard, "Analytical derivatives of rigid body dynamics algorithms", RSS 2018,
+sec. IV),
+
+    d qdd = M(q)^-1 (d tau - dID/dq dq - dID/dqd dqd - dID/dp dp),     at qdd = FD(q, qd, tau, p),
+
+so a directional derivative costs one forward-mode pass of inverse dynamics and one solve with M, and a
+vector-Jacobian product with weights ``g`` costs one solve ``lambda = M^-1 g`` and the closed-form
+vector-Jacobian product of inverse dynamics (the quantity ``inverse_dynamics_vjp``, derived by a symbolic
+reverse sweep, :mod:`jaxskid.symbolic._adjoint`):
+
+    g^T dqdd = lambda^T d tau - (lambda^T dID/dq) dq - (lambda^T dID/dqd) dqd - (lambda^T dID/dp) dp.
+
+Without these rules JAX differentiates the closed form itself, a program many times longer whose
+transpose XLA compiles for minutes into slow code. Each rule saves only ``(q, qd, qdd, p)`` for the
+backward pass and recomputes M there, so a rollout's memory per step is a few state vectors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import jax
+
+from .._errors import RequestError
+from ._ldl import ldl_solve, materialize
+
+AUTODIFF = ("forward", "reverse")
+"""The ways :func:`differentiable` can differentiate forward dynamics."""
+
+
+def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callable:
+    """``solve(q, qd, tau, p) -> qdd`` with the derivative rule of the module docstring.
+
+    ``autodiff="forward"``: a ``jax.custom_jvp`` (forward and reverse mode; reverse mode transposes the
+    forward-mode pass of inverse dynamics); ``"reverse"``: a ``jax.custom_vjp`` with the closed-form
+    vector-Jacobian product (reverse mode only, several times faster to run and to compile). A rule needs
+    ``mass_matrix`` and ``inverse_dynamics`` (forward) or ``inverse_dynamics_vjp`` (reverse); without them,
+    JAX differentiates ``solve`` itself.
+    """
+    if autodiff not in AUTODIFF:
+        raise RequestError(f"autodiff must be one of {', '.join(map(repr, AUTODIFF))}, got {autodiff!r}")
+    have = set(dyn.quantities)
+    if "mass_matrix" not in have:
+        return solve
+    mass = dyn.raw("mass_matrix", batched)
+    if autodiff == "reverse" and "inverse_dynamics_vjp" in have:
+        return _reverse(solve, mass, dyn.raw("inverse_dynamics_vjp", batched), dyn.n_dof)
+    if "inverse_dynamics" in have:
+        return _forward(solve, mass, dyn.raw("inverse_dynamics", False))
+    return solve
+
+
+def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
+    @jax.custom_jvp
+    def fd(q, qd, tau, p):
+        return solve(q, qd, tau, p)
+
+    @jax.checkpoint  # reverse mode keeps (q, qd, qdd, p), not the linearisation of inverse dynamics
+    def tangent(q, qd, a, p, dq, dqd, dtau, dp):
+        _, did = jax.jvp(lambda q, qd, p: inverse(q, qd, a, p), (q, qd, p), (dq, dqd, dp))
+        return ldl_solve(mass(q, p), dtau - did)
+
+    @fd.defjvp
+    def rule(primals, tangents):
+        q, qd, tau, p = primals
+        a = fd(q, qd, tau, p)
+        return a, tangent(q, qd, a, p, *tangents)
+
+    return fd
+
+
+def _reverse(solve: Callable, mass: Callable, vjp: Callable, n: int) -> Callable:
+    @jax.custom_vjp
+    def fd(q, qd, tau, p):
+        return solve(q, qd, tau, p)
+
+    def fwd(q, qd, tau, p):
+        a = solve(q, qd, tau, p)
+        return a, (q, qd, a, p)
+
+    def bwd(res, g):
+        q, qd, a, p = res
+        # computed once each: XLA on CPU would fuse them into each of their users (materialize)
+        lam = materialize(ldl_solve(mass(q, p), g))
+        v = materialize(vjp(q, qd, a, lam, p))
+        return -v[:n], -v[n:2 * n], lam, -v[2 * n:]
+
+    fd.defvjp(fwd, bwd)
+    return fd
