@@ -48,6 +48,14 @@ def test_batched_rollouts(tmp_path):
     assert out["figure"].exists()
 
 
+@pytest.mark.slow
+def test_fit_through_simulation(tmp_path):
+    out = load("fit_through_simulation").main(tmp_path)
+    assert out["losses"][-1] < 0.05 * out["losses"][0]
+    assert out["errors"][0] > 0.2 and out["errors"][-1] < 0.12  # the largest relative error of the factors
+    assert out["figure"].exists()
+
+
 def test_adaptive_2r(tmp_path):
     out = load("adaptive_2r").main(tmp_path)
     per_5s = out["error_per_5s"]
