@@ -234,6 +234,7 @@ def table(results: dict) -> str:
 
 def plot(ax_time, ax_work, key: str, res: dict) -> None:
     """Error against time per rollout (``ax_time``) and against evaluations per rollout (``ax_work``)."""
+    import matplotlib
     import matplotlib.ticker
 
     floor = 1e-17
@@ -242,7 +243,8 @@ def plot(ax_time, ax_work, key: str, res: dict) -> None:
     for k, (method, dtype) in enumerate(groups):
         rows = [r for r in res["rows"] if (r["method"], r["dtype"]) == (method, dtype)]
         err = [max(r["err"], floor) for r in rows]
-        style = {"marker": "^" if dtype == "float32" else "o", "ls": styles[kind(method)], "color": f"C{k % 10}",
+        style = {"marker": "^" if dtype == "float32" else "o", "ls": styles[kind(method)],
+                 "color": matplotlib.colormaps["tab20"](k % 20),
                  "label": f"{method}, {dtype}" if dtype == "float32" else method}
         ax_time.plot([r["time"] * 1e6 for r in rows], err, **style)
         ax_work.plot([r["evaluations"] for r in rows], err, **style)

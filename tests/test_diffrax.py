@@ -92,6 +92,13 @@ def test_vector_field_in_diffeqsolve(arm):
     np.testing.assert_allclose(np.asarray(direct.ys[0][-1]), np.asarray(ref.x[-1]), rtol=0, atol=1e-9)
     np.testing.assert_allclose(np.asarray(direct.ys[1][-1]), np.asarray(ref.z[-1]), rtol=0, atol=1e-9)
 
+    class Damping(jaxskid.Controller):  # no state: y is x alone, as for a policy
+        def __call__(self, t, x, z):
+            return -x[2:], ()
+
+    np.testing.assert_array_equal(np.asarray(jaxskid.vector_field(arm, Damping())(0.1, X0, None)),
+                                  np.asarray(jaxskid.vector_field(arm, lambda t, x: -x[2:])(0.1, X0, None)))
+
 
 SOLVE = {"integrator": diffrax.Tsit5(), "stepsize_controller": tight(1e-10)}
 

@@ -87,12 +87,15 @@ def test_derivative_with_respect_to_the_step(arm):
 
 
 def test_checkpointed_gradient_equals_plain_and_uses_less_memory(arm):
+    """A policy (no torque input to scan): 400 steps in 20 segments of 20."""
     steps = 400
-    u = np.zeros((steps, 2))
+
+    def policy(t, x):
+        return -x[2:]
 
     def compiled(checkpoint):
         def f(x0):
-            x = jaxskid.rollout(arm, x0, u, 1e-3, steps, saveat=jaxskid.SaveAt(t1=True), checkpoint=checkpoint).x
+            x = jaxskid.rollout(arm, x0, policy, 1e-3, steps, saveat=jaxskid.SaveAt(t1=True), checkpoint=checkpoint).x
             return jnp.sum(x * x)
 
         return jax.jit(jax.grad(f), compiler_options=jaxskid.compiler_options()).lower(X0).compile()

@@ -7,14 +7,16 @@
   saving, checkpointing, batching and per-rollout steps behave the same. Each step starts afresh
   (``made_jump=True``: an FSAL solver re-evaluates its first stage, since the torque may jump there). An
   implicit solver then needs its root finder's tolerances, e.g.
-  ``diffrax.Kvaerno5(root_finder=diffrax.VeryChord(rtol=1e-10, atol=1e-10, norm=optimistix.max_norm))``;
-  a step whose root finder fails gives nan.
+  ``diffrax.Kvaerno5(root_finder=diffrax.VeryChord(rtol=1e-6, atol=1e-6, norm=optimistix.max_norm))``
+  (tighter ones can make the chord iteration report divergence near round-off: 1e-8 did on a 2-R arm at
+  5 ms steps, where 1e-6 gave states within 1e-10); a step whose root finder fails gives nan. diffrax's step
+  costs more than :class:`RK4`'s in these loops (``benchmarks/tradeoff_rollouts.py``).
 * an adaptive controller (``diffrax.PIDController(rtol, atol)``): one ``diffrax.diffeqsolve`` from 0 to
   ``steps * dt`` with initial step ``dt``. Array controls are held over the grid ``t_k = k dt``, whose
   points are passed as ``jump_ts`` (``diffrax.ClipStepSizeController``): steps stop just before each jump
   and restart just after it. Saved states between steps come from the solver's dense output. At most
-  ``16 steps + 4096`` solver steps (``max_steps``); gradients use diffrax's
-  ``RecursiveCheckpointAdjoint``. Implicit solvers take the controller's tolerances.
+  ``16 * steps + 4096`` solver steps, rejected ones included (diffrax's ``max_steps``: more is an error);
+  gradients use diffrax's ``RecursiveCheckpointAdjoint``. Implicit solvers take the controller's tolerances.
 """
 
 from __future__ import annotations

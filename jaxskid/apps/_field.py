@@ -108,9 +108,9 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
         dt: the grid's step in seconds; needed for (only for) array controls.
 
     Returns:
-        ``f(t, y, args)``. ``y`` is the state ``x = (q, qd)`` ``(2n,)`` for an array or a policy, and the pair
-        ``(x, z)`` for a :class:`Controller` (``z0 = controller.init(x0)``); ``dy/dt`` has the same form.
-        One state; ``jax.vmap`` it, or the solve, for a batch.
+        ``f(t, y, args)``. ``y`` is the state ``x = (q, qd)`` ``(2n,)``, and the pair ``(x, z)`` for a
+        :class:`Controller` with a state (``z0 = controller.init(x0)``, not empty); ``dy/dt`` has the same
+        form. One state; ``jax.vmap`` it, or the solve, for a batch.
     """
     require_solver(dyn, "vector_field")
     n = dyn.n_dof
@@ -125,7 +125,9 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
     else:
         dtype = jnp.result_type(float)
     f = dynamics_field(dyn, controller, dyn.param_vector(params, dtype), batched=False)
-    stateful = isinstance(controls, Controller)
+    stateful = isinstance(controls, Controller) and bool(
+        jax.tree.leaves(jax.eval_shape(controller.init, jax.ShapeDtypeStruct((2 * n,), dtype)))
+    )
 
     def field(t, y, args):
         x, z = y if stateful else (y, ())

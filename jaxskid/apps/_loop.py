@@ -59,7 +59,7 @@ def _scan_segments(segment, carry, xs, count: int):
     """``segment`` over the ``count`` segments of ``xs`` (directly when there is one)."""
     if count == 1:
         return segment(carry, jax.tree.map(lambda a: a[0], xs))
-    return jax.lax.scan(lambda c, x: (segment(c, x), None), carry, xs)[0]
+    return jax.lax.scan(lambda c, x: (segment(c, x), None), carry, xs, length=count)[0]
 
 
 def run_steps(step: Callable, carry, us, n: int, block: int | None, tau0):

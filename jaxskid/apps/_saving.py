@@ -29,18 +29,23 @@ def _count(value, what: str) -> int:
 class SaveAt:
     """Which states of a rollout are returned: one of
 
-    * ``SaveAt(every=k)``: ``x_0, x_k, x_2k, ..., x_steps`` (``steps`` a multiple of ``k``). The default,
-      ``SaveAt()``, is ``every=1``: every state.
-    * ``SaveAt(ts=[...])``: the states at the given times, which must lie on the step grid ``t = k dt``
-      (within rounding: ``64 eps k``) in ``[0, steps dt]``, strictly increasing. With a traced ``dt`` (a
-      rollout inside ``jax.jit`` or ``jax.grad`` with respect to ``dt``) this cannot be checked: each time
-      is taken to the nearest step, ``round(t / dt)`` clipped to ``[0, steps]``.
-    * ``SaveAt(t1=True)``: the final state only; ``SaveAt(t0=True, t1=True)`` the initial and final states.
+    * ``SaveAt(every=k)``: ``x_0, x_k, x_2k, ..., x_steps`` (``steps`` a multiple of ``k``), by an outer scan
+      over blocks of ``k`` steps whose inner scan stacks nothing. The default, ``SaveAt()``, is ``every=1``:
+      every state.
+    * ``SaveAt(ts=[...])``: the states at the given times, which must lie on the step grid ``t = k dt`` of
+      every rollout (``|t / dt - k| <= 64 eps max(k, 1)``) in ``[0, steps dt]``, strictly increasing. With a
+      traced ``dt`` (a rollout inside ``jax.jit``, or ``jax.grad`` with respect to ``dt``) this cannot be
+      checked: each time is taken to the nearest step, ``round(t / dt)`` clipped to ``[0, steps]``. The
+      states are written into a buffer of ``len(ts)`` rows as the loop passes them.
+    * ``SaveAt(t1=True)``: the final state only (the loop keeps nothing but its carry);
+      ``SaveAt(t0=True, t1=True)`` the initial and final states.
 
-    The torques are saved with the states: ``tau[i]`` is the torque applied at the start of the step that
-    leaves the ``i``-th saved state, for every saved state but the last (``n_saved - 1`` rows; for the
-    default, every step's torque). A ``SaveAt`` is a static argument of the compiled rollout: another one
-    compiles another program.
+    ``Trajectory.t`` holds the saved times ``k dt``. The torques are saved with the states: ``tau[i]`` is the
+    torque applied at the start of the step that leaves the ``i``-th saved state, for every saved state but
+    the last (``n_saved - 1`` rows; for the default, every step's torque). With an adaptive diffrax solver
+    the same states are asked of ``diffrax.SaveAt`` (``ts`` at the grid times, or ``t0``/``t1``); between the
+    solver's steps they come from its dense output. A ``SaveAt`` is a static argument of the compiled
+    rollout: another one compiles another program.
     """
 
     every: int | None

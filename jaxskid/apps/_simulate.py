@@ -150,7 +150,7 @@ def rollout(
     controls,
     dt,
     steps: int,
-    integrator=RK4(),
+    integrator=RK4(),  # noqa: B008  (a frozen dataclass: immutable)
     params=None,
     *,
     saveat: SaveAt | None = None,
