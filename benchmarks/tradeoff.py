@@ -14,13 +14,15 @@ evaluation in JAX of ``jaxskid.testing._recursive``; float64 and float32) it mea
   mpmath evaluation of the same symbolic expressions (``jaxskid.testing._reference``; each option's own
   expressions are checked to give the same 50-digit values), and against Pinocchio.
 
-Rollouts: ``jaxskid.rollout`` (forward dynamics ``qdd = M^-1 (tau - C qd - Q_grav)`` by the closed-form
-quantity ``forward_dynamics``) with tau = 0, from rest under gravity; semi-implicit Euler and RK4 at several step sizes, time per
-state and step, and the error of q at the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
-extrapolation from a second reference at twice its step).
+Rollouts (``benchmarks/tradeoff_rollouts.py``): ``jaxskid.rollout`` (forward dynamics
+``qdd = M^-1 (tau - C qd - Q_grav)`` by the closed-form quantity ``forward_dynamics``) with tau = 0, from rest
+under gravity: jaxskid's semi-implicit Euler and RK4 at several step sizes, diffrax's adaptive Tsit5 and Dopri8
+at several tolerances, and diffrax's fixed-step Euler, Heun, Midpoint and classical RK4 tableau; error of q at
+the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
+extrapolation) against work: vector-field evaluations and wall time per rollout.
 
 The table is printed and written to ``<out>/tradeoff.md``, the Pareto plot (time against error) to
-``<out>/tradeoff.png``.
+``<out>/tradeoff.png``; ``python benchmarks/tradeoff_rollouts.py`` runs the rollout study alone.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import tradeoff_rollouts
 
 ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
@@ -70,18 +73,6 @@ SETTINGS = (
     Setting("trig=inline", "closed", {"trig": "inline"}),
     Setting("recursive JAX", "recursive", {}),
 )
-ROLLOUTS = (  # (integrator, step size in s, dtype)
-    ("semi-implicit Euler", 1e-3, "float64"),
-    ("semi-implicit Euler", 4e-3, "float64"),
-    ("semi-implicit Euler", 1.6e-2, "float64"),
-    ("RK4", 1e-3, "float64"),
-    ("RK4", 4e-3, "float64"),
-    ("RK4", 1.6e-2, "float64"),
-    ("RK4", 4e-3, "float32"),
-    ("semi-implicit Euler", 4e-3, "float32"),
-)
-HORIZON = 0.5  # s
-N_ROLLOUTS = 64
 
 
 # ---------------------------------------------------------------------------------------------- helpers
@@ -260,47 +251,6 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
     return rows
 
 
-def rollouts(robot, q0, params, repeats: int, cache: str) -> dict:
-    """Passive rollouts from rest with ``jaxskid.rollout`` (closed-form forward dynamics, the trajectory
-    stored): time per state and step, and the error of q at the horizon."""
-    _setup_jax()
-    import jaxskid
-
-    dyn = jaxskid.lower(robot, ["forward_dynamics"], cache_dir=cache)
-    integrators = {"RK4": jaxskid.RK4(), "semi-implicit Euler": jaxskid.SemiImplicitEuler()}
-    n = robot.n_dof
-    x0 = np.concatenate([q0, np.zeros_like(q0)], axis=1)
-
-    def run(integrator: str, dt: float, dtype: str):
-        """(final q of every rollout, a call that repeats the rollouts, the number of steps)"""
-        steps = int(round(HORIZON / dt))
-        x, u, p = x0.astype(dtype), np.zeros((steps, n), dtype=dtype), np.asarray(params, dtype=dtype)
-
-        def call():
-            return jaxskid.rollout(dyn, x, u, dt, steps, integrators[integrator], p).x.block_until_ready()
-
-        final = np.asarray(call()[:, -1, :n], dtype=np.float64)
-        return final, call, steps
-
-    dt_ref = min(dt for _, dt, _ in ROLLOUTS) / 8
-    reference, _, _ = run("RK4", dt_ref, "float64")
-    coarse, _, _ = run("RK4", 2 * dt_ref, "float64")
-    out = {"reference_error": float(np.max(np.abs(coarse - reference))) / 15,  # Richardson, RK4: 2^4 - 1
-           "dt_ref": dt_ref, "rows": []}
-    calls, steps_of = {}, {}
-    for integrator, dt, dtype in ROLLOUTS:
-        final, call, steps = run(integrator, dt, dtype)
-        calls[integrator, dt, dtype] = call
-        steps_of[integrator, dt, dtype] = steps
-        out["rows"].append({"integrator": integrator, "dt": dt, "dtype": dtype,
-                            "err": float(np.max(np.abs(final - reference)))})
-    times = round_robin(calls, repeats)
-    for row in out["rows"]:
-        k = (row["integrator"], row["dt"], row["dtype"])
-        row["time"] = times[k] / (len(q0) * steps_of[k])
-    return out
-
-
 def fmt_time(s: float) -> str:
     ns = s * 1e9
     return f"{ns:.0f}" if ns >= 100 else f"{ns:.1f}"
@@ -345,18 +295,7 @@ def table(results: list[dict], rollout_results: dict, args) -> str:
             compile_s = sum(r["compile"][dtype, q] for q in QUANTITIES)
             lines.append(f"| {r['robot']} | {r['setting']} | {dtype} | {r['derive']:.2f} | {ops} | {compile_s:.1f} | "
                          + " | ".join(cells) + " |")
-    lines += ["", "Rollouts: `jaxskid.rollout` (qdd = M^-1 (-C qd - Q_grav), closed-form forward dynamics, tau = 0, trajectory "
-              "stored), from rest at "
-              f"{N_ROLLOUTS} states q0 ~ U(-1, 1), horizon {HORIZON} s, closed form (default options). Error = max "
-              "|q(T) - q_ref(T)| in rad against RK4 at the reference step; the reference's own error is estimated "
-              "by Richardson extrapolation. Time per state and step.", "",
-              "| robot | integrator | step s | dtype | ns per state-step | error (rad) | reference step s "
-              "| reference error |",
-              "|---|---|---|---|---|---|---|---|"]
-    for key, res in rollout_results.items():
-        for row in res["rows"]:
-            lines.append(f"| {key} | {row['integrator']} | {row['dt']:g} | {row['dtype']} | {fmt_time(row['time'])} | "
-                         f"{row['err']:.1e} | {res['dt_ref']:g} | {res['reference_error']:.1e} |")
+    lines += ["", tradeoff_rollouts.table(rollout_results)]
     return "\n".join(lines) + "\n"
 
 
@@ -379,7 +318,7 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
     import matplotlib.ticker
 
     robots = list(dict.fromkeys(r["robot"] for r in results))
-    fig, axes = plt.subplots(len(robots), len(QUANTITIES) + 1, figsize=(19, 4.4 * len(robots) + 0.8), squeeze=False)
+    fig, axes = plt.subplots(len(robots), len(QUANTITIES) + 2, figsize=(24, 4.4 * len(robots) + 0.8), squeeze=False)
     colors = {s.label: plt.cm.tab10(k) for k, s in enumerate(SETTINGS)}
     markers = {"float64": "o", "float32": "^"}
     floor = 1e-17  # errors of exactly zero are drawn here
@@ -406,28 +345,8 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
             ax.set_ylabel("max rel. error vs 50-digit mpmath")
             ax.set_title(f"{key}: {SHORT[q]}")
             ax.grid(True, which="both", alpha=0.3)
-        ax = axes[row][-1]
-        res = rollout_results.get(key)
-        if res:
-            for integrator, color in (("semi-implicit Euler", "tab:orange"), ("RK4", "tab:blue")):
-                for dtype in DTYPES:
-                    rr = [x for x in res["rows"] if x["integrator"] == integrator and x["dtype"] == dtype]
-                    if not rr:
-                        continue
-                    xs, ys = [x["time"] * 1e9 for x in rr], [max(x["err"], floor) for x in rr]
-                    ax.plot(xs, ys, marker=markers[dtype], color=color, ls="-" if dtype == "float64" else "none",
-                            label=f"{integrator}, {dtype}")
-                    for x, y, r in zip(xs, ys, rr):
-                        ax.annotate(f"{r['dt'] * 1e3:g} ms", (x, y), fontsize=7, xytext=(3, 3),
-                                    textcoords="offset points")
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-            ax.legend(fontsize=7)
-        ax.set_xlabel("ns per state and step")
-        ax.set_ylabel(f"max |q(T) - q_ref(T)| (rad), T = {HORIZON} s")
-        ax.set_title(f"{key}: rollouts (step size annotated)")
-        ax.grid(True, which="both", alpha=0.3)
+        if key in rollout_results:
+            tradeoff_rollouts.plot(axes[row][-2], axes[row][-1], key, rollout_results[key])
     handles, labels = axes[0][0].get_legend_handles_labels()
     seen = dict(zip(labels, handles))
     fig.legend(seen.values(), seen.keys(), loc="lower center", ncol=5, fontsize=8)
@@ -477,8 +396,8 @@ def main(argv=None):
                                          f"({result['same_expressions']:.3g} at 50 digits)")
             results += measure(key, robot, states, params, ref, pins, derived, cache, args.repeats)
             t = time.perf_counter()
-            q0 = np.random.default_rng(1).uniform(-1, 1, size=(N_ROLLOUTS, n))
-            rollout_results[key] = rollouts(robot, q0, params, max(3, args.repeats // 2), cache)
+            q0 = np.random.default_rng(1).uniform(-1, 1, size=(tradeoff_rollouts.N_ROLLOUTS, n))
+            rollout_results[key] = tradeoff_rollouts.study(robot, q0, max(3, args.repeats // 2), cache)
             print(f"  rollouts ({time.perf_counter() - t:.1f} s)", flush=True)
     text = table(results, rollout_results, args)
     print()

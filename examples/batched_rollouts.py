@@ -66,7 +66,7 @@ def main(out_dir=None, batch=4096, steps=1500, dt=2e-3, seed=0):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t = np.asarray(traj.t[0])
+    t = np.asarray(traj.t)  # shared by the rollouts (one dt): (steps + 1,)
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
     for i in range(40):
         for j in range(3):

@@ -14,7 +14,10 @@ from .runtime._native import NativeDynamics
 from . import codegen
 from .description._urdf import read_urdf
 from .runtime._forward import forward_dynamics, mass_matrix_condition
-from .apps._simulate import RK4, Controller, SemiImplicitEuler, Trajectory, rollout
+from .apps._field import Controller, vector_field
+from .apps._integrators import RK4, SemiImplicitEuler
+from .apps._saving import Checkpoint, SaveAt
+from .apps._simulate import Trajectory, rollout
 from .apps._identification import (
     Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky, Standard,
     WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
@@ -75,6 +78,9 @@ __all__ = [
     "forward_dynamics",
     "mass_matrix_condition",
     "rollout",
+    "SaveAt",
+    "Checkpoint",
+    "vector_field",
     "ComputedTorque",
     "PDGravity",
     "SlotineLi",

@@ -64,6 +64,17 @@ def lowered(robot: jaxskid.Robot, closed: bool, extra=()):
     return jaxskid.lower(robot, [*FD, *extra, *(["forward_dynamics"] if closed else [])])
 
 
+class Integral(jaxskid.Controller):
+    """PI control to q = 0 with the integral of q as the controller state: a rollout saves ``z`` too."""
+
+    def init(self, x0):
+        return 0.0 * x0[: x0.shape[0] // 2]
+
+    def __call__(self, t, x, z):
+        n = x.shape[0] // 2
+        return -4.0 * x[:n] - 1.0 * x[n:] - 2.0 * z, x[:n]
+
+
 def rel_err(ours, ref, floor: float = 1e-12) -> float:
     """Normwise relative error ``||ours - ref|| / max(||ref||, floor)``, 2-norm over all entries.
 

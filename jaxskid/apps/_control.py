@@ -15,7 +15,7 @@ import jax.numpy as jnp
 
 from .._errors import RequestError, ShapeError
 from ..runtime._dynamics import Dynamics
-from ._simulate import Controller
+from ._field import Controller
 
 
 def reference_derivatives(reference: Callable, t) -> tuple[jax.Array, jax.Array, jax.Array]:

@@ -31,7 +31,8 @@ import scipy.linalg
 from .._errors import RequestError, ShapeError
 from ..runtime._dynamics import Dynamics
 from ..runtime._jit import jit
-from ._simulate import RK4, Trajectory, rollout
+from ._integrators import RK4
+from ._simulate import Trajectory, rollout
 
 
 # ---------------------------------------------------------------------------------------- base parameters

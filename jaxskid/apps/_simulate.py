@@ -1,16 +1,17 @@
-"""Integrators and rollouts on top of a lowered :class:`~jaxskid.Dynamics`.
+"""Rollouts on top of a lowered :class:`~jaxskid.Dynamics`.
 
-Rollouts integrate ``(q, qd)`` with an integrator object under ``lax.scan``, with the joint accelerations
-of :func:`jaxskid.forward_dynamics` (:mod:`jaxskid.runtime._forward`); batches are ``vmap``-ed and, when
-several devices are given, split across them with ``shard_map``.
+A rollout integrates ``y = (q, qd, z)`` (:mod:`jaxskid.apps._field`) with a fixed-step integrator
+(:mod:`jaxskid.apps._integrators`, or a diffrax solver's step) in ``lax.scan`` loops that stack only the
+saved states (:mod:`jaxskid.apps._loop`, :class:`SaveAt`), or with an adaptive diffrax solve
+(:mod:`jaxskid.apps._diffrax`). Batches are ``vmap``-ed and, when several devices are given, split across
+them with ``shard_map``; all of it is one compiled call.
 
 State convention: ``x = (q, qd)`` concatenated, shape ``(2 n,)``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from functools import partial
 from typing import Any, NamedTuple
 
@@ -19,92 +20,27 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-from ..runtime._dynamics import Dynamics
-from ..runtime._batching import batch_shape, float_arrays
 from .._errors import RequestError
-from ..runtime._forward import accelerations, require_solver
+from ..runtime._batching import batch_shape, float_arrays
+from ..runtime._dynamics import Dynamics
+from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
-from ..runtime._jit import jit
-
-
-# ---------------------------------------------------------------------------------------- integrators
-@dataclass(frozen=True)
-class SemiImplicitEuler:
-    """Semi-implicit Euler: ``qd' = qd + dt qdd(q, qd)``, ``q' = q + dt qd'``. Order 1.
-
-    The velocity is updated first and the position with the new velocity; other states (a controller's)
-    take an explicit Euler step. It is symplectic when the mass matrix is constant (Hairer, Lubich & Wanner,
-    "Geometric Numerical Integration", 2006, sec. VI.3), not for a configuration-dependent M.
-    """
-
-    order = 1
-
-    def step(self, f: Callable, t, y, dt):
-        (_, qdd, zdot), aux = f(t, y)
-        q, qd, z = y
-        qd1 = qd + dt * qdd
-        z1 = jax.tree.map(lambda a, b: a + dt * b, z, zdot)
-        return (q + dt * qd1, qd1, z1), aux
-
-
-@dataclass(frozen=True)
-class RK4:
-    """The classical fourth-order Runge-Kutta method (Hairer, Norsett & Wanner, "Solving Ordinary
-    Differential Equations I", Table 1.2). Order 4."""
-
-    order = 4
-
-    def step(self, f: Callable, t, y, dt):
-        def axpy(a, dy, base):
-            return jax.tree.map(lambda u, v: u + a * v, base, dy)
-
-        def stage(carry, cb):
-            k, acc = carry
-            c, b = cb
-            ki, aux = f(t + c * dt, axpy(c * dt, k, y))
-            return (ki, axpy(b, ki, acc)), aux
-
-        zero = jax.tree.map(jnp.zeros_like, y)
-        dtype = jnp.result_type(dt)
-        cb = (jnp.asarray([0.0, 0.5, 0.5, 1.0], dtype), jnp.asarray([1 / 6, 1 / 3, 1 / 3, 1 / 6], dtype))
-        (_, incr), aux = jax.lax.scan(stage, (zero, zero), cb)
-        return axpy(dt, incr, y), jax.tree.map(lambda a: a[0], aux)
-
-
-# ---------------------------------------------------------------------------------------- controllers
-class Controller:
-    """A feedback law with an internal state: ``tau = u(t, x, z)``, ``dz/dt = h(t, x, z)``.
-
-    ``__call__(t, x, z)`` returns ``(tau, dz/dt)``; :func:`rollout` integrates ``z`` with the robot.
-    Stateless laws keep ``z = ()``. Subclasses are compared by identity (they are jit's static arguments).
-    """
-
-    def init(self, x0: jax.Array) -> Any:
-        return ()
-
-    def __call__(self, t, x, z):
-        raise NotImplementedError
-
-
-class _Policy(Controller):
-    """A stateless ``policy(t, x)``; equal to another wrapper of the same policy (no recompilation)."""
-
-    def __init__(self, fn: Callable):
-        self.fn = fn
-
-    def __call__(self, t, x, z):
-        return self.fn(t, x), ()
-
-    def __eq__(self, other):
-        return isinstance(other, _Policy) and other.fn is self.fn
-
-    def __hash__(self):
-        return hash((_Policy, id(self.fn)))
+from ..runtime._jit import jit, traced
+from ._diffrax import Adaptive, adaptive_rollout, stepping
+from ._field import as_controls, dynamics_field
+from ._integrators import RK4
+from ._loop import saved_loop
+from ._saving import Checkpoint, SaveAt
 
 
 class Trajectory(NamedTuple):
-    """A rollout: ``t (steps+1,)``, states ``x (steps+1, 2n)``, torques ``tau (steps, n)`` applied at the
-    start of each step, controller states ``z`` (``()`` if none). Batched rollouts add leading axes."""
+    """A rollout's saved states (:class:`SaveAt`; by default every state, ``n_saved = steps + 1``).
+
+    ``t``: the saved times, ``(n_saved,)`` when the rollouts share one ``dt`` (broadcast against the batch
+    axes, not copied), ``(..., n_saved)`` with one ``dt`` per rollout; ``x (..., n_saved, 2n)``;
+    ``tau (..., n_saved - 1, n)``: the torque applied at the start of the step that leaves each saved state
+    but the last (by default, every step's); controller states ``z`` at the saved states (``()`` if none).
+    """
 
     t: jax.Array
     x: jax.Array
@@ -120,62 +56,110 @@ class Trajectory(NamedTuple):
         return self.x[..., self.x.shape[-1] // 2:]
 
 
-def _rollout_one(dyn, controller, integrator, steps, autodiff, x0, p, u, dt, batched=False) -> Trajectory:
+def _observe(y):
+    q, qd, z = y
+    return jnp.concatenate([q, qd]), z
+
+
+def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodiff, x0, p, u, dt, index,
+                 batched=False):
+    """One rollout: ``(x, tau, z)`` at the saved steps (the times are the caller's). ``p = None``: the default
+    parameters, constants of the compiled program (as in :meth:`Dynamics.raw` calls with ``params=None``:
+    measured 7 % faster on the Panda than passing them)."""
     n = dyn.n_dof
-    qdd = accelerations(dyn, batched, autodiff)
+    p = dyn.param_vector(None, x0.dtype) if p is None else p
+    f = dynamics_field(dyn, controller, p, batched, autodiff)
     z0 = controller.init(x0) if controller is not None else ()
+    tau0 = jnp.zeros((n,), x0.dtype)
+    if isinstance(integrator, Adaptive):
+        y0 = (x0[:n], x0[n:], z0)
+        (x, z), tau = adaptive_rollout(integrator, f, _observe, y0, u, dt, steps, saveat, index, checkpoint, tau0)
+        return x, tau, z
+
+    record = u is None and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
 
     def step(carry, u_k):
-        t, q, qd, z = carry
+        k, q, qd, z = carry
+        y1, tau = integrator.step(lambda t, y: f(t, y, u_k), k.astype(dt.dtype) * dt, (q, qd, z), dt)
+        return (k + 1, *y1), (tau if record else ())
 
-        def f(t, y):
-            q, qd, z = y
-            x = jnp.concatenate([q, qd])
-            if controller is None:
-                tau, zdot = u_k, ()
-            else:
-                tau, zdot = controller(t, x, z)
-            return (qd, qdd(q, qd, tau, p), zdot), tau
-
-        (q1, qd1, z1), tau = integrator.step(f, t, (q, qd, z), dt)
-        return (t + dt, q1, qd1, z1), (jnp.concatenate([q1, qd1]), tau, z1)
-
-    carry0 = (jnp.zeros((), x0.dtype), x0[:n], x0[n:], z0)
-    _, (xs, taus, zs) = jax.lax.scan(step, carry0, u, length=steps)
-    t = dt * jnp.arange(steps + 1, dtype=x0.dtype)
-    x = jnp.concatenate([x0[None, :], xs], axis=0)
-    z = jax.tree.map(lambda a, b: jnp.concatenate([jnp.asarray(a)[None], b], axis=0), z0, zs)
-    return Trajectory(t, x, taus, z)
+    block = None if checkpoint is None else checkpoint.size(steps)
+    carry0 = (jnp.int32(0), x0[:n], x0[n:], z0)
+    (x, z), tau = saved_loop(saveat, step, lambda c: _observe(c[1:]), carry0, u, steps, index, block,
+                             tau0 if record else ())
+    if not record:  # array torques are the rows of u; only the final state saved: none
+        tau = jnp.zeros((0, n), x0.dtype) if u is None else _held_rows(u, saveat, steps, index)
+    return x, tau, z
 
 
-_rollout_single = jit(_rollout_one, static_argnames=("dyn", "controller", "integrator", "steps", "autodiff"))
+def _held_rows(u, saveat, steps, index):
+    """The torques ``u`` applied from the saved steps but the last: ``(n_saved - 1, n)``."""
+    if index is not None:
+        return u[jnp.minimum(index[:-1], steps - 1)]
+    k = saveat.steps_saved(steps)
+    return u[k[:-1]] if saveat.t1 else u[::saveat.every]
 
 
-@partial(jit, static_argnames=("dyn", "controller", "integrator", "steps", "autodiff", "p_batched", "u_batched",
-                               "devices"))
-def _rollout_batch(dyn, controller, integrator, steps, autodiff, p_batched, u_batched, devices, x0, p, u, dt):
-    one = partial(_rollout_one, dyn, controller, integrator, steps, autodiff, batched=True)
-    run = jax.vmap(one, in_axes=(0, 0 if p_batched else None, 0 if u_batched else None, None))
+def _times(saveat, steps, dt, index):
+    """The saved times: ``k dt`` at the saved step numbers ``k``."""
+    k = jnp.asarray(saveat.steps_saved(steps) if index is None else index, dt.dtype)
+    if dt.ndim and k.ndim == 1:
+        k = jnp.broadcast_to(k, (*dt.shape, k.shape[0]))
+    return k * (dt[..., None] if dt.ndim else dt)
+
+
+STATIC = ("dyn", "controller", "integrator", "steps", "saveat", "checkpoint", "autodiff")
+
+
+@partial(jit, static_argnames=STATIC)
+def _rollout_single(dyn, controller, integrator, steps, saveat, checkpoint, autodiff, x0, p, u, dt, index
+                    ) -> Trajectory:
+    x, tau, z = _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodiff, x0, p, u, dt, index)
+    return Trajectory(_times(saveat, steps, dt, index), x, tau, z)
+
+
+@partial(jit, static_argnames=(*STATIC, "batch", "devices"))
+def _rollout_batch(dyn, controller, integrator, steps, saveat, checkpoint, autodiff, batch, devices, x0, p, u, dt,
+                   index):
+    """A batch of rollouts: the inputs flattened to one axis, padded to a multiple of the number of
+    ``devices`` and split over them; the outputs reshaped to ``batch``. Inputs without batch axes (the
+    parameters, torques, step or saved step numbers) are passed whole to every rollout."""
+    size = int(np.prod(batch))
+    pad = -size % len(devices)
+    one = partial(_rollout_one, dyn, controller, integrator, steps, saveat, checkpoint, autodiff, batched=True)
+    args, tails = (x0, p, u, dt, index), (1, 1, 2, 0, 1)
+    mapped = tuple(a is not None and (a.ndim > t or a is x0) for a, t in zip(args, tails))
+
+    def flat(a, tail):
+        a = jnp.broadcast_to(a, (*batch, *a.shape[a.ndim - tail:])).reshape((size, *a.shape[a.ndim - tail:]))
+        return jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)]) if pad else a
+
+    args = tuple(flat(a, t) if m else a for a, t, m in zip(args, tails, mapped))
+    run = jax.vmap(one, in_axes=tuple(0 if m else None for m in mapped))
     if len(devices) > 1:
-        mesh = Mesh(np.asarray(devices), ("batch",))
         spec = PartitionSpec("batch")
-        run = jax.shard_map(
-            run, mesh=mesh,
-            in_specs=(spec, spec if p_batched else PartitionSpec(), spec if u_batched else PartitionSpec(), PartitionSpec()),
-            out_specs=spec,
-        )
-    return run(x0, p, u, dt)
+        run = jax.shard_map(run, mesh=Mesh(np.asarray(devices), ("batch",)), out_specs=spec,
+                            in_specs=tuple(spec if m else PartitionSpec() for m in mapped))
+    x, tau, z = jax.tree.map(lambda a: a[:size].reshape((*batch, *a.shape[1:])), run(*args))
+    if dt.ndim:  # one step per rollout: one time axis per rollout
+        dt = jnp.broadcast_to(dt, batch)
+    if index is not None and index.ndim > 1:
+        index = jnp.broadcast_to(index, (*batch, index.shape[-1]))
+    return Trajectory(_times(saveat, steps, dt, index), x, tau, z)
 
 
 def rollout(
     dyn: Dynamics,
     x0,
     controls,
-    dt: float,
+    dt,
     steps: int,
-    integrator=RK4(),
+    integrator=RK4(),  # noqa: B008  (a frozen dataclass: immutable)
     params=None,
     *,
+    saveat: SaveAt | None = None,
+    checkpoint: Checkpoint | None = None,
+    stepsize_controller=None,
     autodiff: str = "reverse",
     devices: Sequence[jax.Device] | None = None,
 ) -> Trajectory:
@@ -188,69 +172,89 @@ def rollout(
             one sequence per rollout of a batch); a policy ``tau = policy(t, x)``; or a
             :class:`Controller` (``(tau, dz/dt) = controller(t, x, z)``), whose state is integrated too.
             Policies and controllers are evaluated at every stage of the integrator.
-        dt: the step, in seconds.
-        steps: the number of steps.
-        integrator: :class:`RK4` or :class:`SemiImplicitEuler` (any object with ``step(f, t, y, dt)``).
+        dt: the step in seconds, a scalar, or one per rollout of a batch (its batch axes broadcast against
+            those of ``x0``; ``steps`` is shared).
+        steps: the number of steps (a Python int); the rollout ends at ``steps * dt``.
+        integrator: :class:`RK4`, :class:`SemiImplicitEuler` (any object with ``step(f, t, y, dt)``), or a
+            diffrax solver (``diffrax.Tsit5()``, ``diffrax.Kvaerno5()``, ...), which takes fixed steps of ``dt``
+            unless ``stepsize_controller`` is adaptive; see :mod:`jaxskid.apps._diffrax`.
         params: as for :func:`forward_dynamics`; ``(..., n_params)`` or a dict of batched values pairs one
             parameter set with each rollout of a batch (batch axes broadcast against those of ``x0``).
-        autodiff: how JAX differentiates the rollout: ``"reverse"`` (``jax.grad``, ``jax.vjp``: each step's
-            derivative is the closed-form vector-Jacobian product of inverse dynamics and one solve with M,
-            see :mod:`jaxskid.runtime._implicit`) or ``"forward"`` (``jax.jvp``, ``jax.jacfwd``; reverse
-            mode works too, more slowly). As diffrax's ``adjoint=ForwardMode()``: forward mode needs asking.
+        saveat: which states are returned (:class:`SaveAt`); ``None`` is ``SaveAt()``, every state. The
+            others are never stored.
+        checkpoint: ``Checkpoint()`` bounds the memory of ``jax.grad`` through the rollout to
+            ``O(sqrt(steps))`` states by recomputing blocks of steps (:class:`Checkpoint`); ``None`` stores
+            every step's residuals.
+        stepsize_controller: with a diffrax solver, an adaptive diffrax controller
+            (``diffrax.PIDController(rtol=1e-8, atol=1e-8)``): the solver chooses its steps from ``dt`` on, and
+            array controls stay held over the grid ``t_k = k dt``. ``None``: fixed steps of ``dt``.
+        autodiff: ``"reverse"`` for ``jax.grad`` (closed-form step derivatives, :mod:`jaxskid.runtime._implicit`)
+            or ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (as diffrax's ``ForwardMode``; reverse works too).
         devices: where a batch runs; default ``jax.local_devices()``. With several devices the batch is
             split across them (``jax.shard_map`` over a one-axis mesh; padded to a multiple of their
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
             ``jax.devices()``.
 
     Returns:
-        a :class:`Trajectory`; ``x`` has shape ``(..., steps+1, 2n)``.
+        a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
 
-    ``rollout`` is traceable: ``jax.vmap``, ``jax.grad`` and ``jax.jit`` apply to it for a single rollout.
+    ``rollout`` is traceable: ``jax.vmap``, ``jax.grad`` and ``jax.jit`` apply to it; a batch is one
+    compiled call that maps the single rollout (measured no slower than ``jax.vmap`` of single rollouts).
     """
-    n = dyn.n_dof
     require_solver(dyn, "rollout")
-    if autodiff not in AUTODIFF:
-        raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, AUTODIFF))}, got {autodiff!r}")
-    steps = int(steps)
-    controller, u = _controls(controls)
+    steps = _steps(steps)
+    saveat = SaveAt() if saveat is None else saveat
+    _check_choices(saveat, checkpoint)
+    integrator = stepping(integrator, stepsize_controller)
+    controller, u = as_controls(controls)
     arrays, dtype = float_arrays([x0] if u is None else [x0, u])
     x0, u = arrays[0], (arrays[1] if u is not None else None)
-    p = dyn.param_vector(params, dtype)
-    extras = [("params", p.shape, (len(dyn.parameters),))]
+    p = None if params is None else dyn.param_vector(params, dtype)  # None: the defaults, compiled in
+    dt = _step(dt, dtype)
+    n = dyn.n_dof
+    extras = [("params", (len(dyn.parameters),) if p is None else p.shape, (len(dyn.parameters),)),
+              ("dt", dt.shape, ())]
     if u is not None:
         extras.append(("controls", u.shape, (steps, n)))
     batch = batch_shape("rollout", [("x0", x0.shape, (2 * n,))], extras)
-    dt = jnp.asarray(dt, dtype)
+    saveat.block(steps)  # every= must divide steps
+    index = None if saveat.ts is None else saveat.steps_of_times(dt, steps, dtype)
+    if autodiff not in AUTODIFF:
+        raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, AUTODIFF))}, got {autodiff!r}")
+    static = (dyn, controller, integrator, steps, saveat, checkpoint, autodiff)
     if not batch:
-        return _rollout_single(dyn, controller, integrator, steps, autodiff, x0, p, u, dt)
-    return _rollout_spread(dyn, controller, integrator, steps, autodiff, batch, devices, x0, p, u, dt)
-
-
-def _controls(controls) -> tuple[Controller | None, jax.Array | None]:
-    """(controller, torque array): a :class:`Controller`, a policy ``tau(t, x)`` or an array."""
-    if isinstance(controls, Controller):
-        return controls, None
-    if callable(controls):
-        return _Policy(controls), None
-    return None, jnp.asarray(controls)
-
-
-def _rollout_spread(dyn, controller, integrator, steps, autodiff, batch, devices, x0, p, u, dt) -> Trajectory:
-    """A batch of rollouts, flattened to one axis and split over ``devices`` (padded to a multiple)."""
+        return _rollout_single(*static, x0, p, u, dt, index)
     size = int(np.prod(batch))
     devices = tuple(devices) if devices is not None else tuple(jax.local_devices())
     devices = devices[:max(1, min(len(devices), size))]
-    pad = -size % len(devices)
+    return _rollout_batch(*static, batch, devices, x0, p, u, dt, index)
 
-    def flat(a, tail, always=False):
-        if a is None or (a.ndim == tail and not always):
-            return a
-        a = jnp.broadcast_to(a, (*batch, *a.shape[a.ndim - tail:])).reshape((size, *a.shape[a.ndim - tail:]))
-        return jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)], axis=0) if pad else a
 
-    p_batched, u_batched = p.ndim > 1, u is not None and u.ndim > 2
-    out = _rollout_batch(
-        dyn, controller, integrator, steps, autodiff, p_batched, u_batched, devices, flat(x0, 1, True), flat(p, 1),
-        flat(u, 2), dt,
-    )
-    return jax.tree.map(lambda a: a[:size].reshape((*batch, *a.shape[1:])), out)
+def _steps(steps) -> int:
+    if isinstance(steps, (bool, jax.Array)) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise RequestError(f"rollout: steps: expected a whole number >= 1 (a Python int, it fixes the loop "
+                           f"length), got {steps!r}")
+    return int(steps)
+
+
+def _check_choices(saveat, checkpoint) -> None:
+    if not isinstance(saveat, SaveAt):
+        got = f"{type(saveat).__module__.split('.')[0]}.{type(saveat).__name__}"
+        raise RequestError(f"rollout: saveat: expected a jaxskid.SaveAt (diffrax solvers too), got {got}")
+    if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
+        raise RequestError(f"rollout: checkpoint: expected None or jaxskid.Checkpoint(), got {checkpoint!r}")
+
+
+def _step(dt, dtype):
+    """``dt`` in the rollout's dtype; a concrete one is checked to be finite and positive and stays a NumPy
+    array (the jitted call takes it in faster than a JAX array made here: 50 against 200 us)."""
+    if traced(dt):
+        return jnp.asarray(dt, dtype)
+    try:
+        host = np.asarray(dt, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise RequestError(f"rollout: dt: expected a step in seconds (a number or an array), got {dt!r}") from None
+    if not np.all(np.isfinite(host) & (host > 0)):
+        bad = host if host.ndim == 0 else host[~(np.isfinite(host) & (host > 0))][0]
+        raise RequestError(f"rollout: dt: expected finite steps > 0, got {bad}")
+    return host.astype(dtype)
