@@ -7,7 +7,8 @@ from .model._standard import params_from_standard, standard_parameter_names, sta
 from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from .lowering._cache import cache_dir
 from .runtime._dynamics import Dynamics
-from .runtime._jit import compiler_options, jit
+from .runtime._jit import compiler_options, jit, prefer_classic_emitters
+from .lowering._xla_cache import compilation_cache
 from ._api import compile_native, load, lower
 from .lowering._native import BuildError
 from .runtime._native import NativeDynamics
@@ -29,6 +30,8 @@ from .description._report import describe, draw_tree
 
 from ._version import __version__
 
+prefer_classic_emitters()
+
 __all__ = [
     "DEFAULT_QUANTITIES",
     "BuildError",
@@ -38,6 +41,7 @@ __all__ = [
     "Equations",
     "QUANTITIES",
     "cache_dir",
+    "compilation_cache",
     "codegen",
     "compile_native",
     "derive",

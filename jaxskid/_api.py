@@ -14,6 +14,7 @@ from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
+from .lowering._xla_cache import default_compilation_cache
 from .lowering._native import build, default_backend
 from .model._robot import Robot
 from .runtime._dynamics import Dynamics
@@ -84,6 +85,8 @@ def lower(
         names, options = resolve(robot, quantities), options or Options()
         names = resolve(robot, [*names, *(k for n in names for k in QUANTITIES[n].derivatives)])
     key = module_key(robot, names, options)
+    if cache:
+        default_compilation_cache()
     path = entry_path(cache_dir, robot.name, key) if cache else None
     found = read_entry(path, key) if path is not None else None
     if found is None:

@@ -89,3 +89,77 @@ def test_entry_of_another_request_is_not_used(tmp_path):
     assert again.path.read_text() == text
     np.testing.assert_allclose(np.asarray(again.mass_matrix(np.array([0.3, -0.4]))),
                                np.asarray(dyn.mass_matrix(np.array([0.3, -0.4]))), rtol=1e-14)
+
+
+_FIRST_CALL = """
+import sys, jax, numpy as np
+jax.config.update("jax_enable_x64", True)
+hits = []
+jax.monitoring.register_event_listener(lambda event, **kw: hits.append(event) if event.endswith("cache_hits") else None)
+import jaxskid
+robot = jaxskid.load(sys.argv[1])
+dyn = jaxskid.lower(robot, ["forward_dynamics"], cache_dir=sys.argv[2])
+x = jaxskid.rollout(dyn, np.array([0.3, -0.2, 0.0, 0.0]), np.zeros((20, 2)), 1e-3, 20).x
+print(len(hits), float(x[-1, 0]))
+"""
+
+
+def _first_call(tmp_path, **env):
+    import os
+
+    # a small robot compiles fast: every program is written, whatever its compile time
+    environ = {**os.environ, "JAXSKID_CACHE_DIR": str(tmp_path / "home"), "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0",
+               **env}
+    environ.pop("JAX_COMPILATION_CACHE_DIR", None) if "JAX_COMPILATION_CACHE_DIR" not in env else None
+    done = subprocess.run([sys.executable, "-c", _FIRST_CALL, str(ROBOT), str(tmp_path / "modules")],
+                          capture_output=True, text=True, timeout=600, env=environ)
+    assert done.returncode == 0, done.stderr[-2000:]
+    hits, value = done.stdout.split()
+    return int(hits), float(value)
+
+
+def test_compiled_programs_survive_the_process(tmp_path):
+    """The first process compiles and writes jaxskid.cache_dir()/xla; a second one reads its programs there
+    (JAX's cache-hit events) and computes the same trajectory."""
+    hits, first = _first_call(tmp_path)
+    assert hits == 0
+    assert any((tmp_path / "home" / "xla").iterdir()), "nothing was written to the compilation cache"
+    hits, second = _first_call(tmp_path)
+    assert hits > 0 and second == first
+
+
+def test_compilation_cache_can_be_turned_off_or_left_to_jax(tmp_path):
+    hits, _ = _first_call(tmp_path, JAXSKID_COMPILATION_CACHE="0")
+    assert hits == 0 and not (tmp_path / "home" / "xla").exists()
+    own = tmp_path / "jax-own"
+    _first_call(tmp_path, JAX_COMPILATION_CACHE_DIR=str(own))
+    assert any(own.iterdir()) and not (tmp_path / "home" / "xla").exists(), "the user's own JAX cache is used"
+
+
+def test_compilation_cache_function(tmp_path):
+    import jax
+
+    from jaxskid.lowering import _xla_cache
+
+    before = jax.config.jax_compilation_cache_dir
+    try:
+        assert jaxskid.compilation_cache(tmp_path / "xla") == tmp_path / "xla"
+        assert jax.config.jax_compilation_cache_dir == str(tmp_path / "xla")
+        assert jaxskid.compilation_cache(None) is None and jax.config.jax_compilation_cache_dir is None
+        assert _xla_cache.default_compilation_cache() is None, "turned off stays off"
+    finally:
+        jaxskid.compilation_cache(before or None)
+
+
+def test_classic_emitters_flag_at_import():
+    """Importing jaxskid before JAX starts puts the classic CPU emitters in XLA_FLAGS, so that a plain
+    jax.jit compiles jaxskid's programs as jaxskid.jit does; a user's own setting of the flag is kept."""
+    import os
+
+    script = "import os, jaxskid, jax; jax.devices(); print(os.environ.get('XLA_FLAGS', ''))"
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert out.stdout.split() == ["--xla_cpu_use_fusion_emitters=false"], out.stderr[-1000:]
+    env["XLA_FLAGS"] = "--xla_cpu_use_fusion_emitters=true"
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert out.stdout.split() == ["--xla_cpu_use_fusion_emitters=true"], out.stderr[-1000:]

@@ -156,3 +156,58 @@ def test_ldl_solve_matches_numpy_and_rejects_indefinite_matrices():
     assert np.all(np.isnan(np.asarray(ldl_solve(jnp.asarray(indefinite), jnp.asarray(b)))))
     singular = np.diag([1.0, 0.0, 2.0, 3.0, 4.0, 5.0])
     assert np.all(np.isnan(np.asarray(ldl_solve(jnp.asarray(singular), jnp.asarray(b)))))
+
+
+def _users_rk4(accel, p, dt):
+    """A hand-written RK4 rollout of ``accel(q, qd, tau, p)`` over a batch, as a user writes it with
+    ``dyn.raw``: ``jax.vmap`` inside ``lax.scan``, under a plain ``jax.jit``."""
+    f = jax.vmap(accel, in_axes=(0, 0, 0, None))
+
+    def rollout(q, qd, u, p):
+        def deriv(x, tau):
+            return x[1], f(x[0], x[1], tau, p)
+
+        def step(x, tau):
+            k1 = deriv(x, tau)
+            k2 = deriv([a + dt / 2 * k for a, k in zip(x, k1)], tau)
+            k3 = deriv([a + dt / 2 * k for a, k in zip(x, k2)], tau)
+            k4 = deriv([a + dt * k for a, k in zip(x, k3)], tau)
+            x = [a + dt / 6 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4)]
+            return x, jnp.concatenate(x, axis=-1)
+
+        return jax.lax.scan(step, [q, qd], u)[1]
+
+    return jax.jit(rollout)
+
+
+@ROUTES
+def test_raw_functions_in_a_users_loop(closed):
+    """``dyn.raw`` is the documented single-state function to vmap: a hand-written RK4 loop over
+    ``dyn.raw("forward_dynamics")`` gives the trajectory of ``jaxskid.rollout``, its gradient with respect to
+    the parameters that of the rollout (its closed-form derivative rule), and ``dyn.raw`` of a matrix quantity
+    gives the public function's values."""
+    robot = jaxskid.load(REPO / "robots/arm_3dof.yaml")
+    dyn = lowered(robot, closed)
+    n, b, steps, dt = robot.n_dof, 3, 40, 2e-3
+    q0, qd0, _ = random_states(n, b, seed=9)
+    u = np.random.default_rng(10).normal(scale=2.0, size=(b, steps, n))
+    p = dyn.param_vector()
+    loop = _users_rk4(dyn.raw("forward_dynamics"), p, dt)
+    mine = loop(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(u.transpose(1, 0, 2)), p).transpose(1, 0, 2)
+    ref = jaxskid.rollout(dyn, np.concatenate([q0, qd0], axis=1), u, dt, steps).x[:, 1:]
+    np.testing.assert_allclose(np.asarray(mine), np.asarray(ref), rtol=0, atol=1e-12)
+
+    def loss_mine(p):
+        return (loop(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(u.transpose(1, 0, 2)), p)[-1] ** 2).sum()
+
+    def loss_ref(p):
+        return (jaxskid.rollout(dyn, np.concatenate([q0, qd0], axis=1), u, dt, steps, params=p).x[:, -1] ** 2).sum()
+
+    g_mine, g_ref = jax.jit(jax.grad(loss_mine))(p), jax.grad(loss_ref)(p)
+    np.testing.assert_allclose(np.asarray(g_mine), np.asarray(g_ref), rtol=1e-9, atol=1e-9 * float(jnp.abs(g_ref).max()))
+    m = jax.jit(jax.vmap(dyn.raw("mass_matrix"), in_axes=(0, None)))(jnp.asarray(q0), p)
+    np.testing.assert_allclose(np.asarray(m), np.asarray(dyn.mass_matrix(q0)), rtol=1e-13, atol=1e-13)
+    with pytest.raises(jaxskid.RequestError, match="regressor"):
+        dyn.raw("regressor")
+    with pytest.raises(jaxskid.RequestError, match="no quantity is named 'mass_matrx'"):
+        dyn.raw("mass_matrx")

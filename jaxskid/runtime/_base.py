@@ -68,8 +68,11 @@ class QuantitySet:
         return tuple(self._signatures)
 
     def signature(self, name: str) -> tuple[tuple[str, ...], tuple[int, ...]]:
-        """(argument names, output shape) of a quantity."""
-        return self._signatures[name]
+        """(argument names, output shape) of a quantity; :class:`RequestError` for one not made here."""
+        try:
+            return self._signatures[name]
+        except KeyError:
+            raise self._missing(name) from None
 
     def default_params(self) -> dict[str, float]:
         """Parameter name -> default value, for the parameters that have one."""
@@ -95,9 +98,15 @@ class QuantitySet:
         if name.startswith("_"):
             raise AttributeError(name)
         if name in self._catalogue:
-            made = self._made
-            raise RequestError(
+            raise self._missing(name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def _missing(self, name: str) -> RequestError:
+        """The error for a quantity that was not made: how to make it, or that no quantity has that name."""
+        made = self._made
+        if name in self._catalogue or not self._catalogue:
+            return RequestError(
                 f"{name!r} was not {made} for this robot; {made}: {', '.join(self.quantities)}. "
                 f"Ask for it with {self._remedy.format(name=name)}"
             )
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return RequestError(f"no quantity is named {name!r}; {made} here: {', '.join(self.quantities)}")

@@ -60,7 +60,7 @@ def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Calla
     require_solver(dyn, "forward_dynamics")
 
     def raw(name: str) -> Callable:
-        return dyn.raw(name, batched)
+        return dyn.generated(name, batched)
 
     if "forward_dynamics" in dyn.quantities:
         solve = raw("forward_dynamics")

@@ -45,11 +45,11 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
     have = set(dyn.quantities)
     if "mass_matrix" not in have:
         return solve
-    mass = dyn.raw("mass_matrix", batched)
+    mass = dyn.generated("mass_matrix", batched)
     if autodiff == "reverse" and "inverse_dynamics_vjp" in have:
-        return _reverse(solve, mass, dyn.raw("inverse_dynamics_vjp", batched), dyn.n_dof)
+        return _reverse(solve, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn.n_dof)
     if "inverse_dynamics" in have:
-        return _forward(solve, mass, dyn.raw("inverse_dynamics", False))
+        return _forward(solve, mass, dyn.generated("inverse_dynamics", False))
     return solve
 
 

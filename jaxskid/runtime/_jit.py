@@ -7,9 +7,12 @@ into slow code, so every jitted entry point of the runtime and the applications 
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable
 
 import jax
+
+CLASSIC_EMITTERS_FLAG = "--xla_cpu_use_fusion_emitters=false"
 
 
 def compiler_options() -> dict:
@@ -20,6 +23,30 @@ def compiler_options() -> dict:
     the Coriolis matrix: 747 us against 15 us), so the classic emitters are used there.
     """
     return {"xla_cpu_use_fusion_emitters": False} if jax.default_backend() == "cpu" else {}
+
+
+def prefer_classic_emitters() -> bool:
+    """Make XLA's classic CPU emitters the process's default, so that a plain ``jax.jit`` of jaxskid's
+    functions compiles as :func:`jit` does (a hand-written RK4 loop over the Panda's forward dynamics,
+    batch 256: 0.19 us per evaluation under ``jax.jit`` against 0.09 us under :func:`jit` otherwise).
+
+    Called when jaxskid is imported. It adds :data:`CLASSIC_EMITTERS_FLAG` to ``XLA_FLAGS`` only while
+    JAX's backends have not started (XLA reads the variable once, when they do) and only if ``XLA_FLAGS``
+    says nothing of the fusion emitters: ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` keeps XLA's
+    default. Returns whether the flag is in effect from this call.
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_use_fusion_emitters" in flags:
+        return False
+    try:
+        from jax._src import xla_bridge
+
+        if xla_bridge.backends_are_initialized():
+            return False  # too late for this process; jit() still passes the option per program
+    except (ImportError, AttributeError):
+        return False
+    os.environ["XLA_FLAGS"] = f"{flags} {CLASSIC_EMITTERS_FLAG}".strip()
+    return True
 
 
 def traced(tree) -> bool:
