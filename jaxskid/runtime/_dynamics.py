@@ -32,6 +32,20 @@ _ONCE = 32
 multiply-adds per entry, which stays small beside the program that computes the entry."""
 
 
+def _traced_once(fn: Callable, name: str | None = None) -> Callable:
+    """``jax.jit(fn)``: inside a caller's trace, a call of a jitted function is traced once per argument
+    shape and dtype and enters the caller's program as one equation, and JAX caches what it derives from
+    it (its linearisation, transpose and batching). Called plainly, a generated function's thousands of
+    operations are traced again at every use: the gradient of a rollout traced the forward dynamics, the
+    mass matrix and the vector-Jacobian product six times, 4 s of the 5 s first call of a process that
+    found the compiled program in the persistent cache."""
+    jitted = jax.jit(fn)
+    functools.update_wrapper(jitted, fn) if not isinstance(fn, functools.partial) else None
+    if name is not None:
+        jitted.__name__ = name
+    return jitted
+
+
 def _plain(body: Callable, same: Callable, *args):
     return body(*args, same)
 
@@ -68,10 +82,12 @@ class Dynamics(QuantitySet):
         self.source = source
         self.path = path
         self._meta = quantities
-        self._raw: dict[str, Callable] = {name: namespace[name] for name in quantities}
+        # Each generated function is jitted: traced once per shape and dtype, it is one call in the programs
+        # that use it, whose transformations JAX caches (see _traced_once)
+        self._raw: dict[str, Callable] = {name: _traced_once(namespace[name]) for name in quantities}
         same = namespace["_same"]
         self._plain: dict[str, Callable] = {
-            name: functools.partial(_plain, namespace["_" + name], same) for name in quantities
+            name: _traced_once(functools.partial(_plain, namespace["_" + name], same), name) for name in quantities
         }
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
