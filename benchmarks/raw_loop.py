@@ -30,7 +30,7 @@ import jaxskid
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
     "panda": ("panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
-    "solo12": ("solo_description/urdf/solo12.urdf", None),
+    "solo12": ("solo_description/robots/solo12.urdf", None),
     "z1": ("z1_description/urdf/z1.urdf", None),
 }
 

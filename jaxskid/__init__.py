@@ -1,6 +1,6 @@
 """jaxskid: closed-form rigid-body equations of motion, derived in SymPy and lowered to JAX."""
 
-from ._errors import JaxskidError, ModelError, RequestError, ShapeError
+from ._errors import DescriptionWarning, JaxskidError, ModelError, RequestError, ShapeError
 from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
 from .model._standard import params_from_standard, standard_parameter_names, standard_params
@@ -49,6 +49,7 @@ __all__ = [
     "lower",
     "Frame",
     "JaxskidError",
+    "DescriptionWarning",
     "Joint",
     "ModelError",
     "NativeDynamics",

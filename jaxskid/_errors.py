@@ -11,6 +11,11 @@ class JaxskidError(Exception):
     """Base class of all errors jaxskid raises on purpose."""
 
 
+class DescriptionWarning(UserWarning):
+    """A description holds something jaxskid reads differently from what it says, as Skidy does (a ``child``
+    list that disagrees with ``parent``): the message names the file, the key and what is used instead."""
+
+
 class ModelError(JaxskidError, ValueError):
     """A robot description is malformed or violates an invariant.
 

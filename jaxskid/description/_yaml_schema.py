@@ -50,6 +50,7 @@ are mapped back to the description's keys (``mass_inertia[1]``) by :class:`KeyMa
 from __future__ import annotations
 
 import keyword
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,7 +58,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from .._errors import ModelError
+from .._errors import DescriptionWarning, ModelError
 from ..model._robot import Frame, Joint, Robot, spatial_to_body
 from ..model._validate import check_parents, describe
 from ._keymap import KeyMap
@@ -314,16 +315,30 @@ class _Parser(ValueReader):
             if s != paths[i]:
                 raise self.error(f"support[{i}]", f"expected {paths[i]} (the bodies from the root to body {i + 1} "
                                                   f"given by {key}), got {s}")
+        self.check_children(given, key)
+
+    def check_children(self, given, key) -> None:
+        """``child`` against the 1-based parents ``given``. Skidy reads only ``parent`` (its own example files
+        carry ``child`` lists off by one), so a ``child`` that disagrees is ignored with one warning that
+        names what the parents make of it."""
         child = self.data.get("child")
         if child is None:
             return
+        n = len(given)
+        expected = [[k + 1 for k in range(n) if given[k] == i + 1] for i in range(n)]
+        problem = None
         if not isinstance(child, list) or len(child) != n:
-            raise self.error("child", f"expected {n} lists (one per joint), got {describe(child)}")
-        for i, c in enumerate(child):
-            expected = [k + 1 for k in range(n) if given[k] == i + 1]
-            if not isinstance(c, list) or not all(_is_int(b) for b in c) or sorted(c) != expected:
-                raise self.error(f"child[{i}]", f"expected {expected} (the bodies whose parent is body {i + 1}), "
-                                                f"got {describe(c) if not isinstance(c, list) else c}")
+            problem = f"expected {n} lists (one per joint), got {describe(child)}"
+        else:
+            for i, c in enumerate(child):
+                if not isinstance(c, list) or not all(_is_int(b) for b in c) or sorted(c) != expected[i]:
+                    shown = c if isinstance(c, list) else describe(c)
+                    problem = f"child[{i}] is {shown}, but the bodies whose parent is body {i + 1} are {expected[i]}"
+                    break
+        if problem is not None:
+            warnings.warn(
+                f"{self.source}: child: ignored, as Skidy ignores it: {problem}. The tree follows {key}, "
+                f"which gives child: {expected}", DescriptionWarning, stacklevel=2)
 
     def frames(self, n, link_names, base) -> tuple[list[Frame], list[str]]:
         """Named frames (end-effectors first, then ``frames``) and the end-effector names."""
