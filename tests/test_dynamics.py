@@ -242,3 +242,28 @@ def test_jit_helper_at_top_level_and_inside_a_callers_trace():
     assert float(grad[0, 1]) == pytest.approx(float(num), rel=1e-7)
     scaled = jaxskid.jit(lambda q, k: dyn.gravity_torques(q) * k, static_argnames=("k",))
     np.testing.assert_allclose(np.asarray(scaled(q, k=3)), 3 * np.asarray(dyn.gravity_torques(q)), rtol=1e-14)
+
+
+def test_the_wrench_is_keyword_only(pendulum):
+    """``inverse_dynamics(q, qd, qdd, params=None, *, wrench=None)``: the wrench by keyword adds
+    ``external_torques``; passed where ``params`` goes, the error says to pass it by keyword."""
+    robot, _ = pendulum
+    dyn = jaxskid.lower(robot, ["inverse_dynamics", "external_torques", "mass_matrix"])
+    rng = np.random.default_rng(11)
+    q, qd, qdd = rng.normal(size=(3, 2))
+    w = rng.normal(size=(len(dyn.end_effectors), 6))
+    p = dyn.param_vector()
+    expected = np.asarray(dyn.inverse_dynamics(q, qd, qdd)) + np.asarray(dyn.external_torques(q, w))
+    np.testing.assert_allclose(np.asarray(dyn.inverse_dynamics(q, qd, qdd, wrench=w)), expected, rtol=1e-13)
+    np.testing.assert_allclose(np.asarray(dyn.inverse_dynamics(q, qd, qdd, p, wrench=w)), expected, rtol=1e-13)
+    np.testing.assert_allclose(np.asarray(dyn.inverse_dynamics(q, qd, qdd, params=p, wrench=w)), expected, rtol=1e-13)
+    with pytest.raises(jaxskid.ShapeError, match=r"shape of the end-effector wrenches.*by keyword.*"
+                                                  r"inverse_dynamics\(q, qd, qdd, params=None, \*, wrench=None\)"):
+        dyn.inverse_dynamics(q, qd, qdd, w)
+    with pytest.raises(jaxskid.ShapeError, match=r"expected inverse_dynamics\(q, qd, qdd, params=None, \*, "
+                                                  r"wrench=None\), got 5 positional"):
+        dyn.inverse_dynamics(q, qd, qdd, p, w)
+    with pytest.raises(jaxskid.ShapeError, match="mass_matrix takes no wrench"):
+        dyn.mass_matrix(q, wrench=w)
+    with pytest.raises(TypeError):
+        dyn.forward_dynamics(q, qd, qdd, p, w)

@@ -59,7 +59,7 @@ def test_forward_dynamics_random_trees_batched_params_and_wrench(closed):
     tau = rng.normal(size=(batch, robot.n_dof))
     assert robot.end_effectors, "the wrench term needs an end-effector"
     wrench = rng.normal(size=(batch, len(robot.end_effectors), 6))
-    qdd = np.asarray(jaxskid.forward_dynamics(dyn, q, qd, tau, pvec, wrench))
+    qdd = np.asarray(jaxskid.forward_dynamics(dyn, q, qd, tau, pvec, wrench=wrench))
     for k in range(batch):
         model, _ = to_pinocchio(robot, values[k])
         data = model.createData()

@@ -196,37 +196,50 @@ class Dynamics(QuantitySet):
         compiled = outermost(functools.partial(body, pair=True), body)
         takes_wrench = name == "inverse_dynamics"
 
+        call = f"{name}({', '.join(args)}, params=None{', *, wrench=None' if takes_wrench else ''})"
+
         def fn(*state, params=None, wrench=None):
-            if takes_wrench and len(state) == len(args) + 2:
-                *state, params, wrench = state
             if len(state) == len(args) + 1 and params is None:
                 *state, params = state
             if len(state) != len(args):
-                raise ShapeError(f"{name} takes ({', '.join(args)}, params), got {len(state)} state argument(s)")
+                raise ShapeError(f"{name}: expected {call}, got {len(state)} positional argument(s)")
+            if wrench is not None and not takes_wrench:
+                raise ShapeError(f"{name} takes no wrench; expected {call}")
+            if takes_wrench and params is not None:
+                self._check_not_a_wrench(name, params, call)
             if params is not None:  # None stays: the defaults become constants of the compiled program
                 params = self._packed(params)
             out = compiled(*state, params=params)
             if wrench is not None:
-                if not takes_wrench:
-                    raise ShapeError(f"{name} takes no wrench")
                 out = out + self.external_torques(state[0], wrench, params)
             return out
 
         fn.__name__ = name
         fn.__doc__ = (
-            f"{name}({', '.join(args)}, params=None{', wrench=None' if takes_wrench else ''}) -> {tuple(shape)}"
+            f"{call} -> {tuple(shape)}"
             f"\n\n{self._meta[name]['equation']}: {self._meta[name]['doc']}"
         )
         return fn
 
-    def forward_dynamics(self, q, qd, tau, params=None, wrench=None):
+    def _check_not_a_wrench(self, name: str, params, call: str) -> None:
+        """A 4th positional argument of the shape of the wrenches, where a parameter vector is expected: the
+        wrench goes by keyword, and the error says so (rather than that the parameters have a wrong shape)."""
+        shape = getattr(params, "shape", None)
+        if shape is None and not isinstance(params, Mapping):
+            shape = np.shape(params) if isinstance(params, (list, tuple)) else None
+        n_ee, n_params = len(self.end_effectors), len(self.parameters)
+        if shape is not None and len(shape) >= 2 and tuple(shape[-2:]) == (n_ee, 6) and shape[-1] != n_params:
+            raise ShapeError(f"{name}: params has the shape of the end-effector wrenches {tuple(shape)}; pass "
+                             f"a wrench by keyword: {call}")
+
+    def forward_dynamics(self, q, qd, tau, params=None, *, wrench=None):
         """``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext)``.
 
         Uses the lowered quantity ``forward_dynamics`` (closed form) when there is one, else
         ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``) with a
         Cholesky-type solve; see :func:`jaxskid.forward_dynamics`.
         """
-        return forward_dynamics(self, q, qd, tau, params, wrench)
+        return forward_dynamics(self, q, qd, tau, params, wrench=wrench)
 
     def __repr__(self) -> str:
         return f"Dynamics({self.robot_name!r}, n_dof={self.n_dof}, quantities={list(self.quantities)})"

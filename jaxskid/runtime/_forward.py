@@ -96,7 +96,7 @@ def _forward_dynamics(dyn, q, qd, tau, params, wrench):
     return vmapped(f, batch, [(q, 1), (qd, 1), (tau, 1), (p, 1), (wrench, 2)])
 
 
-def forward_dynamics(dyn, q, qd, tau, params=None, wrench=None) -> jax.Array:
+def forward_dynamics(dyn, q, qd, tau, params=None, *, wrench=None) -> jax.Array:
     """Joint accelerations ``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext(q, W))``.
 
     Args:
