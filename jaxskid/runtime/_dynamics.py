@@ -39,8 +39,7 @@ def _traced_once(fn: Callable, name: str | None = None) -> Callable:
     operations are traced again at every use: the gradient of a rollout traced the forward dynamics, the
     mass matrix and the vector-Jacobian product six times, 4 s of the 5 s first call of a process that
     found the compiled program in the persistent cache."""
-    jitted = jax.jit(fn)
-    functools.update_wrapper(jitted, fn) if not isinstance(fn, functools.partial) else None
+    jitted = jax.jit(fn)  # keeps a function's name and docstring; a partial is named here
     if name is not None:
         jitted.__name__ = name
     return jitted
