@@ -19,7 +19,10 @@ Skidy keys
     ``{Ixx: .., Iyz: ..}`` (missing entries are 0), a scalar (times the identity) or ``{index, pointmass}``
     (symbols Ixx<index>.. or I<index> times the identity). ``frame: body`` (the default, as Skidy's
     ``mass_matrix_mixed_data``) means the inertia is about the body frame's origin; ``frame: com`` means
-    it is about the centre of mass (the parallel-axis theorem moves it, as ``mass_matrix_URDF_data``).
+    it is about the centre of mass, in the axes of a COM frame whose orientation in the body frame is
+    ``rotation`` (any rotation form; default the identity): the inertia is turned, ``R I Rᵀ``, and moved by
+    the parallel-axis theorem, as Skidy's ``mass_matrix_mixed_data``. ``rotation`` with ``frame: body`` is
+    ignored, as Skidy ignores it, with a :class:`DescriptionWarning`.
     ``parent`` (1-based, 0 = world; each parent must come before its child), ``support`` (root-to-body
     paths) and ``child``: the tree; ``support`` and ``child`` are checked against ``parent``.
     ``gravity`` (or ``gravity_vector``, required): see below.
@@ -155,9 +158,8 @@ class _Parser(ValueReader):
     """One pass over a description mapping; every check reports the key path of what it reads."""
 
     def __init__(self, data, source: str):
-        super().__init__()
+        super().__init__(source)
         self.data = data
-        self.source = source
         self.keys = KeyMap({"defaults": "assignments", "end_effectors": "ee_names"})
 
     def parse(self) -> _Parsed:
