@@ -101,3 +101,19 @@ def test_wee_on_an_end_effector_at_its_parents_origin_is_unchanged():
     d.update(ee={"translation": [0, 0, 0]}, ee_parent=2, ee_names=["tip"])
     extras = parse_extras(d, source="arm.yaml")
     assert extras.wrench == extras.wrench_skidy == ((symbol("Mx"), 0, 0, symbol("Fx"), 0, 0),)
+
+
+def test_converted_wee_holds_when_the_parent_body_is_locked_away():
+    """Locking the elbow merges body 2 into body 1; the end-effector frames, and so the converted wrenches,
+    are the same, and jaxskid's external_torques is the first row of Skidy's J^T W at that elbow angle."""
+    w_grip = [0.3, -1.2, 0.5, 2.0, -0.7, 1.1]
+    w_probe = [-0.4, 0.9, 1.3, -0.6, 0.8, -1.5]
+    extras = parse_extras(arm("body_fixed", WEE=[w_grip, w_probe]), source="arm.yaml")
+    robot = parse_description(arm("body_fixed"), source="arm.yaml", lock={"q2": 0.6})
+    assert robot.n_dof == 1 and robot.end_effectors == extras.end_effectors
+    dyn = jaxskid.lower(robot, ["external_torques"])
+    wrench = np.array(extras.wrench, dtype=float)
+    for q1 in (-2.0, 0.3, 1.4):
+        expected = skidy_generalized_forces([q1, 0.6], w_grip, w_probe)[:1]
+        np.testing.assert_allclose(np.asarray(dyn.external_torques(np.array([q1]), wrench)), expected,
+                                   rtol=0, atol=1e-12)
