@@ -156,12 +156,40 @@ INERTIA_VARIANTS = {
     "dict_com": {"mass": M, "com": COM, "frame": "com",
                  "inertia": {"Ixx": 0.1, "Ixy": 0.01, "Ixz": 0.02, "Iyy": 0.2, "Iyz": 0.03, "Izz": 0.3}},
 }
+# I_COM in the axes of a COM frame turned by R120 (its x, y, z axes are the body's y, z, x), written out by
+# hand: I'_xx = I_yy, I'_yy = I_zz, I'_zz = I_xx, I'_xy = I_yz, I'_xz = I_yx, I'_yz = I_zx
+I_COM_TURNED = [[0.2, 0.03, 0.01], [0.03, 0.3, 0.02], [0.01, 0.02, 0.1]]
+INERTIA_VARIANTS.update({
+    f"rotated_com_{name}": {"mass": M, "com": COM, "frame": "com", "inertia": I_COM_TURNED,
+                            "rotation": POSE_VARIANTS[name]["rotation"]}
+    for name in ("rotation_matrix", "axis_angle", "rpy", "quaternion")
+})
 
 
 @pytest.mark.parametrize("variant", sorted(INERTIA_VARIANTS))
 def test_inertia_variants_match_the_hand_computed_matrix(variant):
     robot = parse_description(one_joint(inertia=INERTIA_VARIANTS[variant]), source=f"{variant}.yaml")
     np.testing.assert_allclose(numeric(robot.joints[0].inertia, {}), EXPECTED_6X6, rtol=0, atol=1e-14)
+
+
+def test_com_rotation_is_symbolic_and_applies_only_with_frame_com():
+    a, b, c, t = (symbol(x) for x in ("A", "B", "C", "t"))
+    turned = {"mass": 1, "frame": "com", "inertia": [["A", 0, 0], [0, "B", 0], [0, 0, "C"]],
+              "rotation": {"axis": [0, 0, 1], "angle": "t"}}
+    robot = parse_description(one_joint(inertia=turned), source="r.yaml")
+    ct, st = sp.cos(t), sp.sin(t)  # Rz(t) diag(A, B, C) Rz(t)^T
+    expected = sp.Matrix([[a * ct**2 + b * st**2, (a - b) * ct * st, 0],
+                          [(a - b) * ct * st, a * st**2 + b * ct**2, 0], [0, 0, c]])
+    assert same(robot.joints[0].inertia[:3, :3], expected)
+    import jaxskid
+
+    plain = parse_description(one_joint(inertia={"mass": M, "com": COM, "inertia": I_ORIGIN.tolist()}), source="r.yaml")
+    ignored = {"mass": M, "com": COM, "inertia": I_ORIGIN.tolist(), "frame": "body", "rotation": R120}
+    with pytest.warns(jaxskid.DescriptionWarning, match=r"r\.yaml: mass_inertia\[0\]\.rotation: ignored, as Skidy"):
+        assert parse_description(one_joint(inertia=ignored), source="r.yaml") == plain
+    bad = {"mass": 1, "frame": "com", "inertia": 1, "rotation": [[1, 0, 0], [0, 2, 0], [0, 0, 1]]}
+    with pytest.raises(ModelError, match=r"r\.yaml: mass_inertia\[0\]\.rotation: expected a rotation matrix"):
+        parse_description(one_joint(inertia=bad), source="r.yaml")
 
 
 def test_symbolic_inertia_shortcuts():

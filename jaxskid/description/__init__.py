@@ -1,5 +1,5 @@
-"""Robot descriptions: readers (URDF; Skidy's YAML/JSON schema: file, value forms, schema), the writer,
-templates for new descriptions, and reports (tables and a tree drawing) of a model."""
+"""Robot descriptions: readers (URDF; Skidy's YAML/JSON schema: file, value forms, schema, wrenches), the
+writer, templates for new descriptions, and reports (tables and a tree drawing) of a model."""
 
 from ._report import describe, draw_tree
 from ._templates import render_template

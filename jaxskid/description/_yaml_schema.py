@@ -19,12 +19,18 @@ Skidy keys
     ``{Ixx: .., Iyz: ..}`` (missing entries are 0), a scalar (times the identity) or ``{index, pointmass}``
     (symbols Ixx<index>.. or I<index> times the identity). ``frame: body`` (the default, as Skidy's
     ``mass_matrix_mixed_data``) means the inertia is about the body frame's origin; ``frame: com`` means
-    it is about the centre of mass (the parallel-axis theorem moves it, as ``mass_matrix_URDF_data``).
+    it is about the centre of mass, in the axes of a COM frame whose orientation in the body frame is
+    ``rotation`` (any rotation form; default the identity): the inertia is turned, ``R I Rᵀ``, and moved by
+    the parallel-axis theorem, as Skidy's ``mass_matrix_mixed_data``. ``rotation`` with ``frame: body`` is
+    ignored, as Skidy ignores it, with a :class:`DescriptionWarning`.
     ``parent`` (1-based, 0 = world; each parent must come before its child), ``support`` (root-to-body
     paths) and ``child``: the tree; ``support`` and ``child`` are checked against ``parent``.
     ``gravity`` (or ``gravity_vector``, required): see below.
     ``q``, ``qd``, ``q2d``, ``q3d``, ``q4d``: symbol names; the ``q`` names become the joint names.
-    ``WEE``, ``WDEE``, ``W2DEE``: end-effector wrenches and their time derivatives (:func:`read_extras`).
+    ``WEE``, ``WDEE``, ``W2DEE``: end-effector wrenches ``(moment, force)`` and their time derivatives, one
+    6-vector for every end-effector or one per end-effector; Skidy applies each at the origin of the
+    end-effector's parent body, in that body's frame. :func:`read_extras` returns them as written and
+    converted to jaxskid's convention, at the end-effector frame (:mod:`._wrenches`).
     ``assignments``: parameter name -> number (an expression of numbers such as ``pi/2`` is allowed).
 
 jaxskid keys
@@ -62,6 +68,7 @@ from .._errors import DescriptionWarning, ModelError
 from ..model._robot import Frame, Joint, Robot, spatial_to_body
 from ..model._validate import check_parents, describe
 from ._keymap import KeyMap
+from ._wrenches import DescriptionExtras, end_effector_wrenches
 from ._yaml_file import load_mapping
 from ._yaml_values import ValueReader
 
@@ -73,27 +80,6 @@ _SKIDY_KEYS = (
 _JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock")
 _DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
 _WRENCHES = ("WEE", "WDEE", "W2DEE")
-
-
-@dataclass(frozen=True)
-class DescriptionExtras:
-    """What a description gives beyond the :class:`Robot`: symbol names and end-effector wrenches.
-
-    ``q``..``q4d``: the names of the joint positions and their time derivatives (n each; Skidy's defaults
-    ``d<q>``, ``dd<q>``.. when absent). ``wrench``, ``wrench_d``, ``wrench_2d``: one 6-vector
-    ``(moment, force)`` per end-effector (``WEE``, ``WDEE``, ``W2DEE``; zeros when absent), acting on the
-    end-effector's parent body in that body's frame, as in Skidy: ``Q = M q2d + C qd + Q_grav + J_p^T W``.
-    """
-
-    q: tuple[str, ...]
-    qd: tuple[str, ...]
-    q2d: tuple[str, ...]
-    q3d: tuple[str, ...]
-    q4d: tuple[str, ...]
-    end_effectors: tuple[str, ...]
-    wrench: tuple[tuple[sp.Expr, ...], ...]
-    wrench_d: tuple[tuple[sp.Expr, ...], ...]
-    wrench_2d: tuple[tuple[sp.Expr, ...], ...]
 
 
 # ---------------------------------------------------------------------------------------------- entry points
@@ -155,9 +141,8 @@ class _Parser(ValueReader):
     """One pass over a description mapping; every check reports the key path of what it reads."""
 
     def __init__(self, data, source: str):
-        super().__init__()
+        super().__init__(source)
         self.data = data
-        self.source = source
         self.keys = KeyMap({"defaults": "assignments", "end_effectors": "ee_names"})
 
     def parse(self) -> _Parsed:
@@ -178,8 +163,9 @@ class _Parser(ValueReader):
         for i in range(n):
             self.keys.add(f"joints[{i}].name", f"{joint_key}[{i}]")
             self.keys.add(f"joints[{i}].link", f"link_names[{i}]")
-        frames, ees = self.frames(n, link_names, base)
-        extras = self.extras(names, joint_names, ees)
+        frames, ee_entries = self.frames(n, link_names, base)
+        ees = [name for name, *_ in ee_entries]
+        extras = self.extras(names, joint_names, ees, [pose for _, _, pose, _ in ee_entries])
         name = self.name_value(d.get("name", _default_name(self.source)), "name")
         arguments = dict(name=name, joints=joints, gravity=gravity, frames=frames, end_effectors=ees,
                          defaults=defaults, base=base)
@@ -340,8 +326,9 @@ class _Parser(ValueReader):
                 f"{self.source}: child: ignored, as Skidy ignores it: {problem}. The tree follows {key}, "
                 f"which gives child: {expected}", DescriptionWarning, stacklevel=2)
 
-    def frames(self, n, link_names, base) -> tuple[list[Frame], list[str]]:
-        """Named frames (end-effectors first, then ``frames``) and the end-effector names."""
+    def frames(self, n, link_names, base) -> tuple[list[Frame], list[tuple]]:
+        """Named frames (end-effectors first, then ``frames``) and the end-effectors' entries
+        (:meth:`end_effector_entries`)."""
         ees = self.end_effector_entries(n)
         bodies = {base: 0, **{nm: i + 1 for i, nm in enumerate(link_names)}}  # 1-based, 0 = world
         frames, keys = [], []
@@ -360,7 +347,7 @@ class _Parser(ValueReader):
         for k, (name_key, pose_key) in enumerate(keys):
             self.keys.add(f"frames[{k}].name", name_key)
             self.keys.add(f"frames[{k}].offset", pose_key)
-        return frames, [name for name, *_ in ees]
+        return frames, ees
 
     def end_effector_entries(self, n) -> list[tuple]:
         """(name, 1-based parent, pose, (name key, pose key)) of every ``ee``."""
@@ -429,11 +416,13 @@ class _Parser(ValueReader):
             raise self.error("lock", f"expected a mapping of joint names to positions, got {describe(value)}")
         return {str(k): self.scalar(v, f"lock.{k}") for k, v in value.items()}
 
-    def extras(self, names, joint_names, end_effectors) -> DescriptionExtras:
+    def extras(self, names, joint_names, end_effectors, offsets) -> DescriptionExtras:
+        """Symbol names and wrenches; ``offsets``: each end-effector's pose in its parent body's frame."""
         q = names["q"] or joint_names
         derived = {key: tuple(names[key] or ["d" * k + v for v in q]) for k, key in enumerate(_DERIVATIVES)}
-        wrenches = [self.wrenches(key, end_effectors) for key in _WRENCHES]
-        return DescriptionExtras(*(derived[k] for k in _DERIVATIVES), tuple(end_effectors), *wrenches)
+        skidy = [self.wrenches(key, end_effectors) for key in _WRENCHES]
+        ours = [end_effector_wrenches(w, offsets) for w in skidy]
+        return DescriptionExtras(*(derived[k] for k in _DERIVATIVES), tuple(end_effectors), *ours, *skidy)
 
     def wrenches(self, key, end_effectors) -> tuple:
         """One 6-vector per end-effector from ``key``: zeros when absent, one vector broadcast, or one each."""

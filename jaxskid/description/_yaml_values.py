@@ -3,29 +3,35 @@
 Each method reads one entry of a loaded description into SymPy and reports problems at the entry's key
 path. It checks the entry's syntax (types, sizes, keys) and the forms that never reach the model as
 written: a quaternion and an axis-angle axis (the model sees the rotation they give), the axis of a
-``{type, axis, vec}`` screw, a 3x3 inertia and a ``mass`` key (the model sees the 6x6 matrix). It checks
-them with the model's own rules (:mod:`jaxskid.model._validate`); everything else, poses, screws and 6x6
-mass-inertia matrices as the model holds them, is left to :meth:`Robot.create <jaxskid.Robot.create>`.
+``{type, axis, vec}`` screw, a 3x3 inertia, a ``mass`` key and the ``rotation`` of a COM frame (the model
+sees the 6x6 matrix). It checks them with the model's own rules (:mod:`jaxskid.model._validate`);
+everything else, poses, screws and 6x6 mass-inertia matrices as the model holds them, is left to
+:meth:`Robot.create <jaxskid.Robot.create>`.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 
 import sympy as sp
 
-from .._errors import ModelError
+from .._errors import DescriptionWarning, ModelError
 from ..model import _lie as lie
-from ..model._validate import check_mass, check_symmetric, check_unit, describe, numeric, symbol, to_expr
+from ..model._validate import (
+    check_mass, check_rotation, check_symmetric, check_unit, describe, numeric, symbol, to_expr,
+)
 
 INERTIA_KEYS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
 
 
 class ValueReader:
-    """Reads entries. The default parameter values (:meth:`set_defaults`) serve the checks that need
-    numbers; a name in ``reserved`` (a joint variable -> the key that defines it) may not be a parameter."""
+    """Reads entries of the description named ``source``. The default parameter values
+    (:meth:`set_defaults`) serve the checks that need numbers; a name in ``reserved`` (a joint variable ->
+    the key that defines it) may not be a parameter."""
 
-    def __init__(self):
+    def __init__(self, source: str = "<dict>"):
+        self.source = source  # names the description in warnings
         self.values: dict = {}  # parameter symbol -> default value, for numeric checks
         self.reserved: dict[str, str] = {}
 
@@ -133,10 +139,17 @@ class ValueReader:
 
     # ------------------------------------------------------------------ inertias
     def mass_inertia(self, value, where) -> sp.Matrix:
-        """A 6x6 matrix or ``{mass, inertia, com, frame}``."""
+        """A 6x6 matrix or ``{mass, inertia, com, frame, rotation}``.
+
+        With ``frame: com``, ``inertia`` is about the centre of mass in the axes of the COM frame, whose
+        orientation in the body frame is ``rotation`` (default: the identity). As Skidy's
+        ``mass_matrix_mixed_data``, it is turned into the body's axes, ``R I Rᵀ``, and then moved to the
+        body origin by the parallel-axis theorem. With ``frame: body`` the inertia is already in the body
+        frame; Skidy ignores a ``rotation`` there, and so does jaxskid, with a :class:`DescriptionWarning`.
+        """
         if isinstance(value, list):
             return self.matrix(value, 6, 6, where)
-        d = self.mapping(value, where, ("mass", "inertia", "com", "frame"), required=("mass",))
+        d = self.mapping(value, where, ("mass", "inertia", "com", "frame", "rotation"), required=("mass",))
         mass = self.scalar(d["mass"], f"{where}.mass")
         check_mass(numeric(mass, self.values), f"{where}.mass")
         com = self.vector(d.get("com", [0, 0, 0]), 3, f"{where}.com")
@@ -145,6 +158,14 @@ class ValueReader:
         if frame not in ("body", "com"):
             raise self.error(f"{where}.frame", f"expected body (inertia about the body frame's origin) or com "
                                                f"(about the centre of mass), got {describe(frame)}")
+        if "rotation" in d and frame == "com":
+            r = self.rotation(d["rotation"], f"{where}.rotation")
+            check_rotation(r, self.values, f"{where}.rotation")
+            inertia = r * inertia * r.T
+        elif "rotation" in d:
+            warnings.warn(f"{self.source}: {where}.rotation: ignored, as Skidy ignores it: rotation orients the "
+                          f"COM frame and applies only with frame: com; with frame: body the inertia is already "
+                          f"about the body origin in the body frame", DescriptionWarning, stacklevel=2)
         return sp.Matrix(lie.spatial_inertia(mass, com, inertia, about="com" if frame == "com" else "origin"))
 
     def inertia(self, value, where) -> sp.Matrix:
