@@ -22,12 +22,13 @@ import pytest
 import yaml
 
 import jaxskid
-from helpers import PANDA
+from helpers import PANDA, URDFS
 from pinref import to_pinocchio
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "robots" / "arm_2r.yaml"
 LEG = ROOT / "robots" / "hopping_leg.yaml"
+LEG_URDF = ROOT / "tests" / "data" / "urdf" / "hopping_leg.urdf"
 COMMANDS = ("generate", "template", "convert", "info", "graph")
 
 
@@ -133,6 +134,60 @@ def test_template_refuses_to_overwrite_and_checks_usage(tmp_path):
     one_line_error(no_structure, 2, "--structure")
     jaxskid_cmd("template", "-S", "RRR", path, "--force", check_rc=0)
     assert jaxskid.load(path).n_dof == 3
+
+
+def test_template_dof_is_a_revolute_chain_and_needs_exactly_one_source(tmp_path):
+    dof, letters = tmp_path / "arm4.yaml", tmp_path / "rrrr.yaml"
+    made, same, both, neither, zero, too_many, urdf_and_s, urdf_yaml = jaxskid_many(
+        ["template", "--dof", 4, dof], ["template", "-S", "RRRR", letters],
+        ["template", "--dof", 2, "-S", "RR", tmp_path / "x.yaml"], ["template", tmp_path / "x.yaml"],
+        ["template", "--dof", 0, tmp_path / "x.yaml"], ["template", "--dof", 65, tmp_path / "x.yaml"],
+        ["template", "--urdf", LEG_URDF, "-S", "R", tmp_path / "x.py"], ["template", "--urdf", LEG_URDF, tmp_path / "x.yaml"])
+    assert made.returncode == 0 and same.returncode == 0, made.stderr + same.stderr
+    assert "4-joint RRRR template 'arm4'" in made.stdout
+    robot = jaxskid.load(dof)
+    assert robot.joint_types == ("revolute",) * 4
+    assert robot.renamed("rrrr") == jaxskid.load(letters)
+    dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"])
+    q, qd, qdd = np.random.default_rng(5).uniform(-2, 2, (3, 4))
+    m_ref, tau_ref = pinocchio_dynamics(robot, q, qd, qdd)
+    np.testing.assert_allclose(raw(dyn, "mass_matrix", q), m_ref, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(raw(dyn, "inverse_dynamics", q, qd, qdd), tau_ref, rtol=1e-12, atol=1e-12)
+    one_line_error(both, 2, "exactly one of", "-S/--structure and --dof")
+    one_line_error(neither, 2, "exactly one of")
+    one_line_error(zero, 2, "--dof", "1<=x<=64")
+    one_line_error(too_many, 2, "--dof", "1<=x<=64")
+    one_line_error(urdf_and_s, 2, "exactly one of", "--urdf")
+    one_line_error(urdf_yaml, 2, ".py")
+    assert not (tmp_path / "x.yaml").exists() and not (tmp_path / "x.py").exists()
+
+
+@pytest.mark.parametrize("urdf", [LEG_URDF, URDFS["ur5"]], ids=["hopping_leg", "ur5"])
+def test_template_urdf_writes_a_script_that_loads_it(tmp_path, urdf):
+    script = tmp_path / "scripts" / "robot_script.py"
+    script.parent.mkdir()
+    if urdf == LEG_URDF:
+        (tmp_path / "urdf").mkdir()
+        urdf = Path(shutil.copy(LEG_URDF, tmp_path / "urdf"))
+    jaxskid_cmd("template", "--urdf", urdf, script, "--name", "my_robot", check_rc=0)
+    text = script.read_text()
+    if urdf.name == LEG_URDF.name:  # near the script: a relative path; far away (site-packages): an absolute one
+        assert "jaxskid.load(" in text and "'../urdf/hopping_leg.urdf'" in text and str(urdf) not in text
+    else:
+        assert str(urdf) in text
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=ROOT / "robots")
+    assert run.returncode == 0, run.stderr
+    spec = importlib.util.spec_from_file_location("urdf_template", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    reference = jaxskid.load(urdf)
+    assert module.robot == reference.renamed("my_robot")
+    m0 = pinocchio_dynamics(reference, *np.zeros((3, reference.n_dof)))[0]
+    printed = run.stdout.split("M(0) =", 1)[1]
+    np.testing.assert_allclose(np.array(printed.replace("[", " ").replace("]", " ").split(), dtype=float).reshape(m0.shape),
+                               m0, rtol=1e-5, atol=1e-6)  # printed as float32
+    assert "my_robot" in jaxskid_cmd("info", script, check_rc=0).stdout
+    one_line_error(jaxskid_cmd("template", "--urdf", urdf, script), 1, "already exists")
 
 
 # ------------------------------------------------------------------------------------------ convert

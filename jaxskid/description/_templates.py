@@ -172,6 +172,46 @@ def _python(structure: str, name: str | None) -> str:
     return "\n".join(lines)
 
 
+def urdf_script(urdf: str, *, name: str | None = None, command: str = "") -> str:
+    """A Python script that loads the URDF file ``urdf`` (a path relative to the script's folder, or an
+    absolute one), names the robot ``name`` if given, and when run derives, lowers and prints M at q = 0."""
+    lines = [
+        f'"""Robot from a URDF file: template written by `{command or "jaxskid template --urdf"}`.',
+        "",
+        "Edit the loading options (lock joints, numeric inertia, gravity, end-effectors; see jaxskid.load), then",
+        "run it (derives, lowers and prints M at q = 0), or use it wherever jaxskid's command line takes a robot:",
+        "`jaxskid info this.py`, `jaxskid generate this.py`; the command line reads the variable `robot`.",
+        '"""',
+        "",
+        "from pathlib import Path",
+        "",
+        "import jaxskid",
+        "",
+        f"URDF = Path(__file__).resolve().parent / {urdf!r}" if not urdf.startswith("/") else f"URDF = Path({urdf!r})",
+        "",
+        "robot = jaxskid.load(",
+        "    URDF,",
+        "    lock=None,               # e.g. {'finger_joint': 0.0}: fix joints at a position",
+        "    symbolic_inertia=True,   # each body's 10 inertial parameters are symbols, the URDF values defaults",
+        ")",
+    ]
+    if name is not None:
+        lines += ["robot = robot.renamed(" + repr(name) + ")"]
+    lines += [
+        "",
+        "",
+        "if __name__ == '__main__':",
+        "    import numpy as np",
+        "",
+        "    dyn = jaxskid.lower(robot, ['mass_matrix', 'inverse_dynamics'], progress=True)",
+        "    print(dyn)",
+        "    print('M(0) =')",
+        "    print(np.asarray(dyn.mass_matrix(np.zeros(robot.n_dof))))",
+        "",
+    ]
+    return "\n".join(lines)
+
+
 def render_template(structure: str, fmt: str, *, name: str | None = None) -> str:
     """The text of a robot template.
 

@@ -182,6 +182,10 @@ class Robot:
                   for j in self.joints]
         return self._recreate(joints=joints)
 
+    def renamed(self, name: str) -> "Robot":
+        """The same robot under another name (generated code and files are named after it)."""
+        return replace(self, name=name)
+
     def with_defaults(self, values: Mapping[str, float]) -> "Robot":
         """A new robot with ``values`` added to (or replacing) the default parameter values."""
         return self._recreate(defaults={**dict(self.defaults), **values})

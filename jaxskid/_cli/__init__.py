@@ -11,20 +11,15 @@ from __future__ import annotations
 import logging
 import math
 import sys
-import time
 from pathlib import Path
 
 import click
 
+from ._errors import BadInput
+
 TARGET_NAMES = ("jax", "python", "c", "cpp", "cython", "julia", "matlab", "latex")
 ROBOT_SUFFIXES = (".urdf", ".yaml", ".yml", ".json", ".py")
-
-
-class BadInput(click.ClickException):
-    """Bad input (exit code 1), as opposed to bad usage (exit code 2)."""
-
-    exit_code = 1
-
+MAX_JOINTS = 64  # as many as a template's structure may have (jaxskid.description._templates)
 
 # ---------------------------------------------------------------------------------------------- options
 class CommaList(click.ParamType):
@@ -76,6 +71,30 @@ def _parse_lock(ctx, param, values) -> dict[str, float]:
             raise click.BadParameter(f"expected JOINT=POSITION with a finite number, got {item!r}", ctx, param)
         lock[name.strip()] = number
     return lock
+
+
+def _options_field(ctx, param, value):
+    """The value of the :class:`jaxskid.Options` field of the same name, checked by Options itself."""
+    import jaxskid
+
+    try:
+        jaxskid.Options(**{param.name: value})
+    except jaxskid.RequestError as exc:
+        raise click.BadParameter(str(exc).replace(f"Options.{param.name}: ", ""), ctx, param) from None
+    return value
+
+
+def _code_name(ctx, param, value):
+    """A name for generated code: an identifier that ``jaxskid.codegen.stem`` keeps as it is."""
+    if value is None:
+        return None
+    from jaxskid.codegen import stem
+
+    if stem(value) != value:
+        raise click.BadParameter(f"expected a lower-case identifier of at most 40 letters, digits and _ that "
+                                 f"is no keyword of a target language, got {value!r} (try {stem(value)!r})",
+                                 ctx, param)
+    return value
 
 
 def _robot_path(ctx, param, value):
@@ -143,9 +162,22 @@ def cli():
 @click.option("--symbolic", "symbolic", default=None, metavar="P1,P2,...",
               help="Parameters that stay inputs; every other one becomes its default value. "
                    "'' makes all of them numbers [default: all stay symbolic].")
+@click.option("--simplify", default="none", show_default=True, callback=_options_field, metavar="LEVEL",
+              help="Simplify every intermediate: none, expand (sympy.expand) or trigsimp (sympy.trigsimp).")
+@click.option("--cse", default="tape", show_default=True, callback=_options_field, metavar="MODE",
+              help="Common subexpressions: tape (name and share every intermediate), sympy (also run "
+                   "sympy.cse) or none (one expression tree per entry, Skidy's form; large beyond 3-4 joints).")
+@click.option("--trig", default="symbols", show_default=True, callback=_options_field, metavar="MODE",
+              help="symbols (name sin(q_i), cos(q_i) once) or inline.")
+@click.option("--name", "name", default=None, callback=_code_name, metavar="NAME",
+              help="Name of the generated files, module, namespace and function prefix, e.g. the C header "
+                   "NAME.h with guard JAXSKID_NAME_H and functions NAME_<quantity> [default: the robot's "
+                   "name as an identifier].")
 @click.option("--check/--no-check", default=True, show_default=True, help="Run the numeric self-check.")
+@click.option("--pdf/--no-pdf", default=True, show_default=True,
+              help="With -t latex, typeset the .tex with pdflatex (when installed) and write the .pdf beside it.")
 @FORCE
-def generate(robot, targets, quantities, out, lock, symbolic, check, force):
+def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, trig, name, check, pdf, force):
     """Derive and lower ROBOT's equations of motion and write code for the targets.
 
     Prints the quantities with their shapes and operation counts, the derive, lower and compile times,
@@ -158,114 +190,70 @@ def generate(robot, targets, quantities, out, lock, symbolic, check, force):
       jaxskid generate panda.urdf -t c,cpp -q mass_matrix,inverse_dynamics --lock panda_finger_joint1=0 \\
           --lock panda_finger_joint2=0 -o out/panda
       jaxskid generate robot.yaml -t latex --symbolic m1,m2 --force
+      jaxskid generate robot.yaml -t c --name arm --simplify trigsimp --cse sympy
     """
     import jax
+
+    import jaxskid
+
+    from ._generate import generate_files
 
     model = load_robot(robot, lock)
     if symbolic is not None:
         model = model.keep_symbolic([s.strip() for s in symbolic.split(",") if s.strip()], where="--symbolic")
+    if name is not None:
+        model = model.renamed(name)
     wanted = _merge(quantities)
     wanted = "all" if wanted and "all" in wanted else wanted
+    options = jaxskid.Options(cse=cse, simplify=simplify, trig=trig)
     with jax.enable_x64(True):  # the generated code and the self-check run in float64
-        _generate(model, _merge(targets) or ("jax",), wanted, out, check, force)
-
-
-def _generate(model, targets, wanted, out, check, force) -> None:
-    """Derive once; emit every target's files; lower the same equations for the timing and the self-check;
-    write the files last, all or none."""
-    import jaxskid
-
-    t0 = time.perf_counter()
-    eqs = jaxskid.derive(model, wanted, progress=sys.stderr.isatty())
-    t_derive = time.perf_counter() - t0
-    out_dir = Path(out) if out else Path("generated") / jaxskid.codegen.stem(model.name)
-    files: dict[str, str] = {}
-    for target in targets:
-        files.update(jaxskid.codegen.emit(eqs, target))
-    existing = [str(out_dir / f) for f in files if (out_dir / f).exists()]
-    if existing and not force:
-        raise BadInput(f"{', '.join(existing)} already exist{'s' if len(existing) == 1 else ''}; "
-                       "use --force to overwrite")
-    t0 = time.perf_counter()
-    dyn = jaxskid.lower(eqs)
-    t_lower = time.perf_counter() - t0
-    click.echo(f"robot {model.name}: {model.n_dof} joint(s), {len(model.parameters)} symbolic parameter(s)")
-    click.echo(f"{'quantity':<22} {'arguments':<22} {'shape':<12} {'operations':>10}")
-    for name, q in eqs.quantities.items():
-        shape = "(" + ", ".join(map(str, q.shape)) + ("," if len(q.shape) == 1 else "") + ")"
-        click.echo(f"{name:<22} {', '.join((*q.args, 'p')):<22} {shape:<12} {eqs.operation_count([name]):>10}")
-    defaults_known = set(model.parameters) <= set(model.default_params())
-    compile_text = f"{_first_calls(dyn):.2f} s (jit, first call)" if defaults_known else \
-        "skipped (parameters without defaults)"
-    click.echo(f"derive {t_derive:.2f} s, lower {t_lower:.2f} s (JAX module), compile {compile_text}")
-    if check:
-        _self_check(dyn, defaults_known)
-    paths = jaxskid.codegen.write(files, out_dir, force=force)
-    click.echo(f"wrote {len(paths)} file(s) to {out_dir}:")
-    for p in paths:
-        click.echo(f"  {p.name}")
-
-
-def _first_calls(dyn) -> float:
-    """Seconds to call every quantity once at zero state (jit compilation, mostly)."""
-    import numpy as np
-
-    t0 = time.perf_counter()
-    for name in dyn.quantities:
-        args, _ = dyn.signature(name)
-        state = [np.zeros((len(dyn.end_effectors), 6) if a.startswith("wrench") else dyn.n_dof) for a in args]
-        value = getattr(dyn, name)(*state)
-        for leaf in (value.values() if isinstance(value, dict) else [value]):
-            leaf.block_until_ready()
-    return time.perf_counter() - t0
-
-
-def _self_check(dyn, defaults_known: bool) -> None:
-    if not defaults_known:
-        click.echo("self-check: skipped (some parameters have no default value)")
-        return
-    from .apps._selfcheck import self_check
-
-    rows = self_check(dyn)
-    if not rows:
-        click.echo("self-check: nothing to compare for these quantities")
-        return
-    click.echo(f"{'self-check':<44} {'max error':>10} {'tolerance':>10}  result")
-    for row in rows:
-        click.echo(f"{row.name:<44} {row.error:>10.2e} {row.tolerance:>10.1e}  {'ok' if row.ok else 'FAILED'}")
-    failed = [r.name for r in rows if not r.ok]
-    if failed:
-        raise click.ClickException(f"self-check failed: {', '.join(failed)}")
+        generate_files(model, _merge(targets) or ("jax",), wanted, out, options=options,
+                       check=check, force=force, pdf=pdf)
 
 
 @cli.command()
-@click.option("-S", "--structure", required=True, metavar="LETTERS",
+@click.option("-S", "--structure", default=None, metavar="LETTERS",
               help="Joint types from base to tip: R revolute, P prismatic (e.g. RRP).")
+@click.option("--dof", type=click.IntRange(1, MAX_JOINTS), default=None, metavar="N",
+              help=f"N revolute joints (the structure R...R), 1 to {MAX_JOINTS}.")
+@click.option("--urdf", type=click.Path(exists=True, dir_okay=False), default=None, metavar="PATH",
+              help="Write a Python script (OUTPUT .py) that loads this URDF file instead of a chain template; "
+                   "the path is written relative to OUTPUT's folder when that is short, else absolute.")
 @click.argument("output", type=click.Path(dir_okay=False))
-@click.option("--name", default=None, help="The robot's name [default: the file name].")
+@click.option("--name", default=None, help="The robot's name [default: the file name; with --urdf, the URDF's].")
 @FORCE
-def template(structure, output, name, force):
+def template(structure, dof, urdf, output, name, force):
     """Write a robot template to OUTPUT (.yaml, .yml, .json or .py) that loads, derives and lowers as it is.
 
-    The chain has one joint per letter; every length, mass and inertia is a parameter with a default.
+    Give exactly one of -S, --dof or --urdf. The chain has one joint per letter; every length, mass and
+    inertia is a parameter with a default. With --urdf, OUTPUT is a Python script that loads the URDF.
 
     \b
     Examples:
       jaxskid template -S RRP robot.yaml
-      jaxskid template -S RRRRRR arm6.json --name arm6
+      jaxskid template --dof 6 arm6.json --name arm6
       jaxskid template -S PRR leg.py && python leg.py
+      jaxskid template --urdf ur5.urdf ur5.py && python ur5.py
     """
     import re
 
     from jaxskid import RequestError
 
-    from .description._templates import check_structure, render_template
+    from ..description._templates import check_structure, render_template
 
+    given = [opt for opt, v in (("-S/--structure", structure), ("--dof", dof), ("--urdf", urdf)) if v is not None]
+    if len(given) != 1:
+        raise click.UsageError("give exactly one of -S/--structure, --dof and --urdf"
+                               + (f", not {' and '.join(given)}" if given else ""))
     suffix = Path(output).suffix.lower()
     fmt = {".yaml": "yaml", ".yml": "yaml", ".json": "json", ".py": "py"}.get(suffix)
-    if fmt is None:
-        raise click.BadParameter(f"expected a .yaml, .yml, .json or .py file name, got {output!r}",
-                                 param_hint="OUTPUT")
+    if fmt is None or (urdf is not None and fmt != "py"):
+        raise click.BadParameter(f"expected a {'.py' if urdf else '.yaml, .yml, .json or .py'} file name, "
+                                 f"got {output!r}", param_hint="OUTPUT")
+    if urdf is not None:
+        _urdf_template(urdf, Path(output), name, force)
+        return
+    structure = "R" * dof if dof is not None else structure
     try:
         check_structure(structure)
     except RequestError as exc:
@@ -277,6 +265,23 @@ def template(structure, output, name, force):
     text = render_template(structure, fmt, name=name)
     _write_new(Path(output), text, force)
     click.echo(f"wrote {output}: {len(structure)}-joint {structure.upper()} template '{name}'")
+
+
+def _urdf_template(urdf: str, output: Path, name: str | None, force: bool) -> None:
+    """Write the script that loads ``urdf``; the URDF is read first, so that a bad file fails here."""
+    import os
+
+    import jaxskid
+
+    from ..description._templates import urdf_script
+
+    robot = jaxskid.load(urdf)
+    target = Path(urdf).resolve()
+    relative = os.path.relpath(target, output.resolve().parent)
+    ref = relative if Path(relative).parts[:3].count("..") < 3 else str(target)
+    text = urdf_script(Path(ref).as_posix(), name=name, command=f"jaxskid template --urdf {Path(urdf).name}")
+    _write_new(output, text, force)
+    click.echo(f"wrote {output}: script loading {ref} ({name or robot.name}, {robot.n_dof} joint(s))")
 
 
 def _write_new(path: Path, text: str, force: bool) -> None:
@@ -311,7 +316,7 @@ def convert(source, output, symbolic_inertia, round_tol, lock, force):
     """
     import jaxskid
 
-    from .description._yaml_writer import round_robot
+    from ..description._yaml_writer import round_robot
 
     if Path(output).suffix.lower() not in (".yaml", ".yml", ".json"):
         raise click.BadParameter(f"expected a .yaml, .yml or .json file name, got {output!r}", param_hint="OUTPUT")
@@ -375,7 +380,7 @@ def graph(robot, output, lock, force):
 # ---------------------------------------------------------------------------------------------- entry point
 def main(argv=None) -> None:
     """Console entry point: run the command line, turning every expected error into one line on stderr."""
-    from ._errors import JaxskidError
+    from .._errors import JaxskidError
 
     logging.basicConfig(level=logging.WARNING, format="jaxskid: warning: %(message)s")
     try:
