@@ -304,6 +304,89 @@ def test_generate_with_lock_and_symbolic_parameters(tmp_path):
                                rtol=1e-12)
 
 
+C_DRIVER = """#include <stdio.h>
+#include "two_link.h"
+int main(void)
+{
+    const double q[2] = {0.3, -0.8}, qd[2] = {1.0, 0.5}, qdd[2] = {-0.2, 0.7};
+    double tau[TWO_LINK_INVERSE_DYNAMICS_SIZE];
+    two_link_inverse_dynamics(q, qd, qdd, two_link_default_params, tau);
+    printf("%.17g %.17g\\n", tau[0], tau[1]);
+    return 0;
+}
+"""
+
+
+def test_generate_options_and_name(tmp_path):
+    out = tmp_path / "named"
+    proc = jaxskid_cmd("generate", ARM, "-t", "c,python", "-q", "mass_matrix,inverse_dynamics", "--name", "two_link",
+                       "--simplify", "expand", "--cse", "none", "--trig", "inline", "-o", out, check_rc=0)
+    assert "options: cse=none, simplify=expand, trig=inline" in proc.stdout and "FAILED" not in proc.stdout
+    assert {p.name for p in out.iterdir()} == {"two_link.c", "two_link.h", "two_link_numpy.py"}
+    header = (out / "two_link.h").read_text()
+    assert "#ifndef JAXSKID_TWO_LINK_H" in header and "void two_link_inverse_dynamics(" in header
+    exe = tmp_path / "driver"
+    (tmp_path / "driver.c").write_text(C_DRIVER)
+    cc = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", f"-I{out}", "-o", exe,
+                         tmp_path / "driver.c", out / "two_link.c", "-lm"], capture_output=True, text=True)
+    assert cc.returncode == 0, cc.stderr
+    tau_c = np.array(subprocess.run([exe], capture_output=True, text=True, check=True).stdout.split(), dtype=float)
+    reference = jaxskid.lower(jaxskid.load(ARM), ["mass_matrix", "inverse_dynamics"])  # default options
+    q, qd, qdd = np.array([0.3, -0.8]), np.array([1.0, 0.5]), np.array([-0.2, 0.7])
+    tau_ref = raw(reference, "inverse_dynamics", q, qd, qdd)
+    np.testing.assert_allclose(tau_c, tau_ref, rtol=1e-12, atol=1e-12)
+    spec = importlib.util.spec_from_file_location("two_link_numpy", out / "two_link_numpy.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    np.testing.assert_allclose(module.mass_matrix(q), raw(reference, "mass_matrix", q), rtol=1e-12, atol=1e-12)
+    eqs = jaxskid.derive(jaxskid.load(ARM), ["mass_matrix"], options=jaxskid.Options(cse="none"))
+    assert not eqs.assignments  # --cse none is Skidy's form: one tree per entry, as the module prints
+    cases = [(("--simplify", "bogus"), ("--simplify", "none, expand, trigsimp")), (("--cse", "yes"), ("--cse", "tape")),
+             (("--trig", "x"), ("--trig",)), (("--name", "9lives"), ("--name", "robot_9lives")),
+             (("--name", "Arm"), ("--name", "'arm'")), (("--name", "double"), ("--name",))]
+    for (args, fragments), bad in zip(cases, jaxskid_many(*(["generate", ARM, *a, "-o", tmp_path / "x"] for a, _ in cases))):
+        one_line_error(bad, 2, *fragments)
+    assert not (tmp_path / "x").exists()
+
+
+def test_generate_latex_makes_a_pdf_when_pdflatex_is_installed(tmp_path):
+    assert shutil.which("pdflatex"), "pdflatex is required: apt-get install -y texlive-latex-base"
+    proc = jaxskid_cmd("generate", ARM, "-t", "latex", "-q", "mass_matrix", "--no-check", "-o", tmp_path, check_rc=0)
+    assert "arm_2r.pdf" in proc.stdout and "wrote 2 file(s)" in proc.stdout
+    assert (tmp_path / "arm_2r.pdf").read_bytes().startswith(b"%PDF")
+    assert not (tmp_path / "arm_2r.log").exists() and {p.name for p in tmp_path.iterdir()} == {"arm_2r.tex", "arm_2r.pdf"}
+    (tmp_path / "arm_2r.tex").unlink()  # the PDF alone still blocks a rewrite
+    one_line_error(jaxskid_cmd("generate", ARM, "-t", "latex", "-q", "mass_matrix", "-o", tmp_path), 1, "arm_2r.pdf")
+    no_pdf = jaxskid_cmd("generate", ARM, "-t", "latex", "-q", "mass_matrix", "--no-check", "--no-pdf", "-o",
+                         tmp_path / "tex", check_rc=0)
+    assert "pdflatex" not in no_pdf.stdout and {p.name for p in (tmp_path / "tex").iterdir()} == {"arm_2r.tex"}
+
+
+def test_generate_latex_without_or_with_a_failing_pdflatex(tmp_path, monkeypatch, capsys):
+    from jaxskid._cli import main
+
+    bare = tmp_path / "bin"
+    bare.mkdir()
+    monkeypatch.setenv("PATH", str(bare))  # no pdflatex on this PATH
+    args = ["generate", str(ARM), "-t", "latex", "-q", "mass_matrix", "--no-check", "-o"]
+    with pytest.raises(SystemExit) as done:
+        main([*args, str(tmp_path / "a")])
+    assert done.value.code == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "pdflatex" in line]
+    assert lines == ["PDF not made: pdflatex is not installed (apt-get install texlive-latex-base); the .tex is written"]
+    assert {p.name for p in (tmp_path / "a").iterdir()} == {"arm_2r.tex"}
+    fake = bare / "pdflatex"  # a pdflatex that fails, leaving a log
+    fake.write_text('#!/bin/sh\nfor a; do f=$a; done\necho "! Undefined control sequence." > "${f%.tex}.log"\nexit 1\n')
+    fake.chmod(0o755)
+    with pytest.raises(SystemExit) as done:
+        main([*args, str(tmp_path / "b")])
+    assert done.value.code == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pdflatex failed" in err[0] and str(tmp_path / "b" / "arm_2r.log") in err[0], err
+    assert "Undefined control sequence" in (tmp_path / "b" / "arm_2r.log").read_text()
+    assert not (tmp_path / "b" / "arm_2r.pdf").exists()
+
+
 # ------------------------------------------------------------------------------------------ errors
 BAD_USAGE = [
     (("generate", ARM, "--bogus"), "No such option"),
