@@ -22,13 +22,14 @@ import pytest
 import yaml
 
 import jaxskid
-from helpers import PANDA, URDFS
+from helpers import PANDA, URDFS, pinocchio_urdf_model
 from pinref import to_pinocchio
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "robots" / "arm_2r.yaml"
 LEG = ROOT / "robots" / "hopping_leg.yaml"
 LEG_URDF = ROOT / "tests" / "data" / "urdf" / "hopping_leg.urdf"
+RIGHT_ANGLES = ROOT / "tests" / "data" / "urdf" / "right_angles.urdf"  # rpy pi/2, pi/4, pi/6; 0.0825, 0.107
 COMMANDS = ("generate", "template", "convert", "info", "graph")
 
 
@@ -199,7 +200,9 @@ def test_convert_panda_round_trip(tmp_path):
         assert proc.returncode == 0, proc.stderr
     assert "9 joint(s)" in procs[0].stdout
     data = json.loads(rounded.read_text())
-    entries = [x for pose in data["body_ref_config"] for row in pose for x in row]
+    poses = data["body_ref_config"]  # rotations with angles k*pi/q as {rpy}
+    assert all(isinstance(pose, dict) for pose in poses) and ["pi/2", 0, 0] in [p.get("rotation", {}).get("rpy") for p in poses]
+    entries = [x for pose in poses for x in pose["translation"]]
     assert all(abs(x) > 1e-10 or x == 0 for x in entries if isinstance(x, (int, float)))
     assert 0 in entries and not any(0 < abs(x) < 1e-10 for x in entries if isinstance(x, float))
     assert "panda_link1_m" in yaml.safe_load(symbolic.read_text())["assignments"]
@@ -221,6 +224,72 @@ def test_convert_panda_round_trip(tmp_path):
     one_line_error(exists, 1, "already exists")
     one_line_error(bad_suffix, 2, ".yaml")
     one_line_error(bad_round, 2, "--round")
+
+
+def assert_same_dynamics(path, reference, n):
+    """The robot in ``path`` has ``reference``'s M, Q_grav and tau (1e-12 relative) at random states."""
+    names = ["mass_matrix", "gravity_torques", "inverse_dynamics"]
+    dyn = jaxskid.lower(jaxskid.load(path), names)
+    assert dyn.joint_names == reference.joint_names
+    for q, qd, qdd in (np.random.default_rng(k).uniform(-2, 2, (3, n)) for k in range(3)):
+        for name, args in (("mass_matrix", (q,)), ("gravity_torques", (q,)), ("inverse_dynamics", (q, qd, qdd))):
+            got, ref = raw(dyn, name, *args), raw(reference, name, *args)
+            assert np.max(np.abs(got - ref)) <= 1e-12 * max(1.0, np.max(np.abs(ref))), (path.name, name)
+
+
+def test_convert_round_writes_fractions_and_multiples_of_pi(tmp_path):
+    from jaxskid.description._yaml_writer import snap
+
+    exact = {0.5: "1/2", 0.333333333333: "1/3", 1.5707963267948966: "pi/2", 0.7853981633974483: "pi/4",
+             -2.0943951023931953: "-2*pi/3", 0.7071067811865476: "sqrt(2)/2", 6.123233995736766e-17: "0", 1.0: "1"}
+    for x, text in exact.items():
+        assert str(snap(x, 1e-10)) == text, x
+    for x in (0.0825, 0.107, 0.33333, 1.5708, 0.7854, 9.81, 0.0001):
+        assert snap(x, 1e-10) is None, x
+    rounded, symbols, plain = tmp_path / "rounded.yaml", tmp_path / "symbols.yaml", tmp_path / "plain.yaml"
+    for proc in jaxskid_many(["convert", RIGHT_ANGLES, rounded, "--round", "1e-10"],
+                             ["convert", RIGHT_ANGLES, symbols, "--symbolify", "--round", "1e-10"],
+                             ["convert", RIGHT_ANGLES, plain]):
+        assert proc.returncode == 0, proc.stderr
+    data = yaml.safe_load(rounded.read_text())
+    assert [pose["rotation"]["rpy"] for pose in data["body_ref_config"]] == [[0, 0, "pi/2"], ["pi/4", 0, 0]]
+    assert data["body_ref_config"][1]["translation"] == [0.0825, 0, "1/2"]  # 0.0825 is a measured number
+    assert data["body_ref_config"][0]["translation"] == [0, 0, 0.107]
+    assert data["ee"] == [{"translation": ["1/3", 0, 0], "rotation": {"rpy": [0, "pi/6", 0]}}]
+    assert isinstance(yaml.safe_load(plain.read_text())["body_ref_config"][0], list)  # 4x4 matrices without --round
+    reference = jaxskid.lower(jaxskid.load(RIGHT_ANGLES, symbolic_inertia=False),
+                              ["mass_matrix", "gravity_torques", "inverse_dynamics"])
+    for path in (rounded, symbols, plain):
+        assert_same_dynamics(path, reference, 2)
+    sym = yaml.safe_load(symbols.read_text())
+    assert sym["body_ref_config"][1]["translation"] == ["j2_x", 0, "j2_z"]
+    assert sym["assignments"]["j2_x"] == 0.0825 and sym["assignments"]["tip_x"] == 1 / 3
+    assert sym["assignments"]["l1_m"] == 1.5 and len(jaxskid.load(symbols).parameters) == 4 + 2 * 10
+    # against Pinocchio's own reading of the URDF
+    robot = jaxskid.load(symbols)
+    model, _ = to_pinocchio(robot, robot.default_params())
+    pin_ref = pinocchio_urdf_model(RIGHT_ANGLES)
+    q = np.array([0.4, -1.1])
+    np.testing.assert_allclose(pin.crba(model, model.createData(), q), pin.crba(pin_ref, pin_ref.createData(), q),
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_convert_symbolify_leg_and_name_clashes(tmp_path):
+    out = tmp_path / "leg.json"
+    jaxskid_cmd("convert", LEG_URDF, out, "--symbolify", check_rc=0)
+    robot = jaxskid.load(out)
+    assert all(isinstance(x, str) or x == 0 for pose in json.loads(out.read_text())["body_ref_config"]
+               for x in (pose[0][3], pose[1][3], pose[2][3]))
+    assert_same_dynamics(out, jaxskid.lower(jaxskid.load(LEG_URDF), ["mass_matrix", "gravity_torques",
+                                                                     "inverse_dynamics"]), robot.n_dof)
+    clash = tmp_path / "clash.yaml"
+    clash.write_text(ARM.read_text().replace("assignments:", "assignments:\n  shoulder_x: 1.0", 1))
+    data = yaml.safe_load(clash.read_text())
+    data["gravity"] = [0, "-shoulder_x*g", 0]
+    data["body_ref_config"][0] = [[1, 0, 0, 0.25], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    clash.write_text(yaml.safe_dump(data))
+    jaxskid.load(clash)
+    one_line_error(jaxskid_cmd("convert", clash, tmp_path / "c.yaml", "--symbolify"), 1, "shoulder_x", "taken")
 
 
 # ------------------------------------------------------------------------------------------ info and graph

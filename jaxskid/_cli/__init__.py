@@ -298,11 +298,19 @@ def _write_new(path: Path, text: str, force: bool) -> None:
 @click.option("--symbolic-inertia/--numeric-inertia", default=False, show_default=True,
               help="URDF input: write each body's 10 inertial parameters as symbols with their values as "
                    "defaults (<link>_m, <link>_mcx, ...), or as numbers.")
-@click.option("--round", "round_tol", type=click.FloatRange(min=0, max=0.1), default=None, metavar="TOL",
-              help="Round numbers within TOL of 0, 1 or -1 to exactly that (e.g. 1e-10: cos(pi/2) -> 0).")
+@click.option("--round", "round_tol", type=click.FloatRange(min=0, max=1e-6), default=None, metavar="TOL",
+              help="Replace numbers within TOL (at most 1e-6) of a simple exact number by it: integers, p/q and "
+                   "k*pi/q with q <= 12, sqrt(2)/2, sqrt(3)/2 (e.g. 1e-10: 6.1e-17 -> 0, 0.5 -> 1/2, "
+                   "1.5707963267948966 -> pi/2; 0.0825 stays), and write rotations with such angles as "
+                   "{rpy: [roll, pitch, yaw]}.")
+@click.option("--symbolify", is_flag=True,
+              help="Make the geometry symbols too: every nonzero number in a joint's or frame's translation "
+                   "becomes <joint>_x, <joint>_y or <joint>_z (<frame>_... for frames) with the number as its "
+                   "default, and each body's inertia its 10 parameters as --symbolic-inertia does. Rotations "
+                   "stay numbers.")
 @LOCK
 @FORCE
-def convert(source, output, symbolic_inertia, round_tol, lock, force):
+def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force):
     """Convert SOURCE (.urdf, .yaml, .json or .py) to OUTPUT in Skidy's YAML/JSON schema.
 
     The output is in the body-fixed representation with 6x6 mass-inertia matrices; it loads back into
@@ -312,10 +320,12 @@ def convert(source, output, symbolic_inertia, round_tol, lock, force):
     Examples:
       jaxskid convert panda.urdf panda.yaml --round 1e-10
       jaxskid convert ur5.urdf ur5.json --symbolic-inertia
+      jaxskid convert ur5.urdf ur5_symbols.yaml --symbolify --round 1e-10
       jaxskid convert arm.yaml arm.json
     """
     import jaxskid
 
+    from ..description._symbolify import symbolify_robot
     from ..description._yaml_writer import round_robot
 
     if Path(output).suffix.lower() not in (".yaml", ".yml", ".json"):
@@ -328,8 +338,10 @@ def convert(source, output, symbolic_inertia, round_tol, lock, force):
         robot = load_robot(source, lock)
     if round_tol:
         robot = round_robot(robot, round_tol)
+    if symbolify:
+        robot = symbolify_robot(robot)
     try:
-        jaxskid.write_description(robot, output, force=force)
+        jaxskid.write_description(robot, output, force=force, rotations="rpy" if round_tol else "matrix")
     except FileExistsError:
         raise BadInput(f"{output} already exists; use --force to overwrite it") from None
     click.echo(f"wrote {output}: {robot.name}, {robot.n_dof} joint(s), {len(robot.parameters)} parameter(s)")
