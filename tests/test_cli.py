@@ -335,10 +335,10 @@ def test_generate_writes_checks_and_refuses_to_overwrite(tmp_path):
                        "-o", out, check_rc=0)
     text = proc.stdout
     for fragment in ("robot arm_2r", "mass_matrix", "(2, 2)", "inverse_dynamics", "derive", "lower", "compile",
-                     "self-check", "M symmetric", "wrote 4 file(s)"):
+                     "self-check", "M symmetric", "wrote 5 file(s)"):
         assert fragment in text, fragment
     assert "FAILED" not in text
-    assert {p.name for p in out.iterdir()} == {"arm_2r.c", "arm_2r.h", "arm_2r.tex", "arm_2r_numpy.py"}
+    assert {p.name for p in out.iterdir()} == {"arm_2r.c", "arm_2r.h", "arm_2r.tex", "arm_2r.pdf", "arm_2r_numpy.py"}
     spec = importlib.util.spec_from_file_location("cli_arm_numpy", out / "arm_2r_numpy.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
