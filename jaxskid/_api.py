@@ -3,18 +3,20 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 from ._errors import ModelError, RequestError
 from .codegen import Layout
-from .codegen._c import emit_c
+from .codegen._c import emit_c, native_block
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
 from .lowering._xla_cache import default_compilation_cache
+from .lowering._ffi import ffi_library
 from .lowering._native import build, default_backend
 from .model._robot import Robot
 from .runtime._dynamics import Dynamics
@@ -91,9 +93,22 @@ def lower(
     found = read_entry(path, key) if path is not None else None
     if found is None:
         eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
-        found = store_entry(path, module_source(Layout(eqs, names, jax_names)), key)
+        module = module_source(Layout(eqs, names, jax_names)) + native_block(eqs, names)
+        found = store_entry(path, module, key)
     namespace, source = found
-    return Dynamics(namespace, source, path, catalogue=tuple(QUANTITIES))
+    native_root = Path(cache_dir or default_cache_dir()) / "native" if cache else None
+    return Dynamics(namespace, source, path, catalogue=tuple(QUANTITIES),
+                    native=functools.partial(_native_library, root=native_root))
+
+
+def _native_library(native: Mapping[str, str], root: Path | None) -> Path:
+    """Build the native backward kernel of forward dynamics (:mod:`jaxskid.lowering._ffi`) in ``root``, or
+    in a temporary folder when the cache is off."""
+    if root is None:
+        import tempfile
+
+        root = Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
+    return ffi_library(native, root)
 
 
 def module_key(robot: Robot, names: Sequence[str], options: Options | None = None) -> str:

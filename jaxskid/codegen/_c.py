@@ -108,6 +108,22 @@ def emit_c(layout: Layout) -> dict[str, str]:
     return {f"{s}.h": "\n".join(h), f"{s}.c": "\n".join(c)}
 
 
+FFI_QUANTITIES = ("mass_matrix", "inverse_dynamics_vjp")
+"""The quantities whose C the native backward kernel of forward dynamics is built from
+(:mod:`jaxskid.lowering._ffi`)."""
+
+
+def native_block(eqs, names: Sequence[str]) -> str:
+    """Python source assigning ``NATIVE_C``, the C of :data:`FFI_QUANTITIES` (``{"stem", "header",
+    "source"}``), for appending to a generated JAX module; ``""`` when ``names`` lack them."""
+    if not set(FFI_QUANTITIES) <= set(names):
+        return ""
+    layout = Layout(eqs, FFI_QUANTITIES)
+    files = emit_c(layout)
+    native = {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"]}
+    return f"\nNATIVE_C = {native!r}\n"
+
+
 def emit_cpp(layout: Layout) -> dict[str, str]:
     s, S = layout.stem, layout.stem.upper()
     n_par = len(layout.parameters)

@@ -20,6 +20,7 @@ import numpy as np
 from .._errors import ShapeError
 from ..model._parameters import ParameterLayout
 from ._base import QuantitySet
+from ._ffi import library
 from ._batching import batch_shape, float_arrays, vmapped
 from ._forward import accelerations, forward_dynamics
 from ._jit import compiler_options, jit, outermost  # noqa: F401  (compiler_options, jit: imported from here too)
@@ -66,7 +67,8 @@ class Dynamics(QuantitySet):
     _made = "lowered"
     _remedy = "jaxskid.lower(robot, quantities=[..., {name!r}])"
 
-    def __init__(self, namespace: dict, source: str, path=None, catalogue: Collection[str] = ()):
+    def __init__(self, namespace: dict, source: str, path=None, catalogue: Collection[str] = (),
+                 native: Callable | None = None):
         meta = namespace["METADATA"]
         quantities = meta["quantities"]
         super().__init__(
@@ -91,6 +93,9 @@ class Dynamics(QuantitySet):
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
         self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
+        native_c = namespace.get("NATIVE_C")
+        self._native_build = functools.partial(native, native_c) if native and native_c else None
+        self._native_target: str | None | bool = False  # False: not looked for yet
 
     def raw(self, name: str, batched: bool = True) -> Callable:
         """The function of one state, ``f(*state, p)`` with ``p`` a parameter vector, to call inside your own
@@ -125,6 +130,14 @@ class Dynamics(QuantitySet):
                     fn.__name__, fn.__doc__ = name, generated.__doc__
             self._user_raw[(name, batched)] = fn
         return fn
+
+    def native_target(self) -> str | None:
+        """The registered XLA FFI target of the native backward kernel of forward dynamics
+        (:mod:`jaxskid.runtime._ffi`), built on first use; None where there is none (not lowered with
+        ``forward_dynamics``, turned off with ``JAXSKID_NATIVE=0``, or no C compiler)."""
+        if self._native_target is False:
+            self._native_target = library(self._native_build, self.robot_name)
+        return self._native_target
 
     def generated(self, name: str, batched: bool = True) -> Callable:
         """The generated function of one state as it is, ``f(*state, p)``: what :meth:`raw` wraps, for

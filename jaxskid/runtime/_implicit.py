@@ -25,6 +25,7 @@ from collections.abc import Callable
 import jax
 
 from .._errors import RequestError
+from ._ffi import native_backward
 from ._ldl import ldl_solve, materialize
 
 AUTODIFF = ("forward", "reverse")
@@ -47,7 +48,7 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
         return solve
     mass = dyn.generated("mass_matrix", batched)
     if autodiff == "reverse" and "inverse_dynamics_vjp" in have:
-        return _reverse(solve, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn.n_dof)
+        return _reverse(solve, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn)
     if "inverse_dynamics" in have:
         return _forward(solve, mass, dyn.generated("inverse_dynamics", False))
     return solve
@@ -72,7 +73,14 @@ def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
     return fd
 
 
-def _reverse(solve: Callable, mass: Callable, vjp: Callable, n: int) -> Callable:
+def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
+    n = dyn.n_dof
+
+    def kernel(q, qd, a, g, p):
+        # computed once each: XLA on CPU would fuse them into each of their users (materialize)
+        lam = materialize(ldl_solve(mass(q, p), g))
+        return lam, materialize(vjp(q, qd, a, lam, p))
+
     @jax.custom_vjp
     def fd(q, qd, tau, p):
         return solve(q, qd, tau, p)
@@ -83,9 +91,9 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, n: int) -> Callable
 
     def bwd(res, g):
         q, qd, a, p = res
-        # computed once each: XLA on CPU would fuse them into each of their users (materialize)
-        lam = materialize(ldl_solve(mass(q, p), g))
-        v = materialize(vjp(q, qd, a, lam, p))
+        target = dyn.native_target()  # on CPU, one native kernel (jaxskid.runtime._ffi); looked up when traced
+        step = kernel if target is None else native_backward(target, n, 2 * n + len(dyn.parameters), kernel)
+        lam, v = step(q, qd, a, g, p)
         return -v[:n], -v[n:2 * n], lam, -v[2 * n:]
 
     fd.defvjp(fwd, bwd)
