@@ -34,7 +34,7 @@ def case(request):
 
     def pure(q, qd, a, g, p):
         lam = ldl_solve(mass(q, p), g)
-        return lam, vjp(q, qd, a, lam, p)
+        return lam, -vjp(q, qd, a, lam, p)
 
     kernel = native_backward(target, dyn.n_dof, 2 * dyn.n_dof + len(dyn.parameters), pure)
     return robot, dyn, kernel, pure

@@ -6,11 +6,12 @@ kernels, each paying the runtime's dispatch; the backward pass of a rollout step
 stage against 9 for the forward pass, and the gradient cost 10-30 times the loss. The same arithmetic as
 one C function is one kernel. :func:`ffi_library` builds
 
-    jaxskid_fd_vjp(q, qd, qdd, g, p) -> [lambda, vjp]      lambda = M(q)^-1 g,
+    jaxskid_fd_vjp(q, qd, qdd, g, p) -> [lambda, -vjp]     lambda = M(q)^-1 g,
                                                             vjp = lambda^T d ID(q, qd, qdd, p)/d(q, qd, p)
 
 from the generated C of ``mass_matrix`` and ``inverse_dynamics_vjp`` and a hand-written L D L^T solve
-(:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation). The handler loops over a batch (the
+(:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation), compiled as one translation unit so that
+both inline and share each joint's sine and cosine. The handler loops over a batch (the
 leading axes of the output; an argument whose size is one state's is shared by all), and takes float32
 or float64, computing in double. Nothing here knows SymPy: a build takes C text.
 """
@@ -35,7 +36,7 @@ _GLUE = r"""
 #include <stdint.h>
 #include <stddef.h>
 #include "xla/ffi/api/c_api.h"
-#include "@STEM@.h"
+#include "@STEM@.c"  /* one translation unit: M and the VJP inline here and share sin, cos */
 
 #define N @STEM_UPPER@_N_DOF
 #define NP @STEM_UPPER@_N_PARAMS
@@ -44,7 +45,7 @@ _GLUE = r"""
 #define NP1 (NP > 0 ? NP : 1)
 
 /* lambda = M^-1 g by M = L D L^T (Golub & Van Loan, Alg. 4.1.2; a pivot <= 0 gives nan), then the
-   vector-Jacobian product of inverse dynamics at lambda. out = [lambda (N), vjp (NV)]. */
+   vector-Jacobian product of inverse dynamics at lambda, negated. out = [lambda (N), -vjp (NV)]. */
 static void backward(const double *q, const double *qd, const double *a, const double *g, const double *p,
                      double *out)
 {
@@ -71,6 +72,7 @@ static void backward(const double *q, const double *qd, const double *a, const d
         out[i] = s;
     }
     @STEM@_inverse_dynamics_vjp(q, qd, a, out, p, out + N);
+    for (int i = N; i < NO; i++) out[i] = -out[i];
 }
 
 static int64_t numel(const XLA_FFI_Buffer *b)
@@ -152,7 +154,7 @@ def ffi_library(native: Mapping[str, str], root: Path) -> Path:
         (tmp / "glue.c").write_text(glue)
         out = tmp / final.name
         cmd = [*cc.split(), *CFLAGS, *FFI_CFLAGS, "-shared", "-I", inc, "-I", str(tmp), "-o", str(out),
-               str(tmp / f"{stem}.c"), str(tmp / "glue.c"), "-lm"]
+               str(tmp / "glue.c"), "-lm"]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0:
             raise BuildError(f"{' '.join(cmd)} failed: {proc.stderr.strip()[-2000:]}")

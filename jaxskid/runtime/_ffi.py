@@ -2,7 +2,7 @@
 
 :func:`native_backward` wraps the library of :mod:`jaxskid.lowering._ffi` (built by the caller's
 ``build`` function, which :func:`jaxskid.lower` supplies) as a JAX function
-``(q, qd, qdd, g, p) -> (lambda, vjp)`` of one state: ``jax.ffi.ffi_call`` on CPU, the pure-JAX
+``(q, qd, qdd, g, p) -> (lambda, -vjp)`` of one state: ``jax.ffi.ffi_call`` on CPU, the pure-JAX
 function it replaces on every other platform (``lax.platform_dependent``), with that function's
 derivatives (``jax.custom_jvp``), so gradients of gradients still work. It maps over batches with the
 batch inside the kernel.
@@ -57,8 +57,9 @@ def library(build: Callable[[], str] | None, label: str) -> str | None:
 
 
 def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Callable:
-    """``f(q, qd, qdd, g, p) -> (lambda, vjp)`` computed by the registered ``target`` on CPU and by
-    ``fallback`` (the same function in JAX) elsewhere; ``n_out`` is the length of ``vjp``."""
+    """``f(q, qd, qdd, g, p) -> (lambda, -vjp)`` computed by the registered ``target`` on CPU and by
+    ``fallback`` (the same function in JAX) elsewhere; ``n_out`` is the length of ``vjp``. On a machine
+    whose devices are all CPUs the fallback is only traced for a gradient of a gradient."""
 
     def native(q, qd, a, g, p):
         dtype = jnp.result_type(q, qd, a, g, p)
@@ -66,8 +67,12 @@ def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Call
         out = jax.ffi.ffi_call(target, jax.ShapeDtypeStruct((n + n_out,), dtype), vmap_method="broadcast_all")(*args)
         return out[:n], out[n:]
 
+    cpu_only = all(d.platform == "cpu" for d in jax.devices())
+
     @jax.custom_jvp
     def kernel(q, qd, a, g, p):
+        if cpu_only:  # the JAX form is not traced where no other platform could run it
+            return native(q, qd, a, g, p)
         return jax.lax.platform_dependent(q, qd, a, g, p, cpu=native, default=fallback)
 
     @kernel.defjvp

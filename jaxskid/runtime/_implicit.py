@@ -79,7 +79,7 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
     def kernel(q, qd, a, g, p):
         # computed once each: XLA on CPU would fuse them into each of their users (materialize)
         lam = materialize(ldl_solve(mass(q, p), g))
-        return lam, materialize(vjp(q, qd, a, lam, p))
+        return lam, materialize(-vjp(q, qd, a, lam, p))
 
     @jax.custom_vjp
     def fd(q, qd, tau, p):
@@ -93,8 +93,8 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
         q, qd, a, p = res
         target = dyn.native_target()  # on CPU, one native kernel (jaxskid.runtime._ffi); looked up when traced
         step = kernel if target is None else native_backward(target, n, 2 * n + len(dyn.parameters), kernel)
-        lam, v = step(q, qd, a, g, p)
-        return -v[:n], -v[n:2 * n], lam, -v[2 * n:]
+        lam, w = step(q, qd, a, g, p)  # w = -lambda^T d ID/d(q, qd, p)
+        return w[:n], w[n:2 * n], lam, w[2 * n:]
 
     fd.defvjp(fwd, bwd)
     return fd
