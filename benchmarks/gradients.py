@@ -9,7 +9,8 @@ torques, as a function of all inertial parameters. The script times, each in a f
 - the loss, its reverse-mode gradient (``jax.grad``, ``autodiff="reverse"``) and its forward-mode gradient
   (``jax.jacfwd``, ``autodiff="forward"``), medians over repeats, and the ratio gradient / loss;
 - the first call (trace + compile + run) under ``jaxskid.jit`` and under plain ``jax.jit``, cold (an empty
-  persistent compilation cache) and warm (a second process on the same cache);
+  persistent compilation cache) and warm (a second process on the same cache); each jit has its own cache
+  and processes, so neither finds the other's compiled program;
 - the compiled program's memory (arguments, outputs and temporaries, from XLA's memory analysis);
 - the same for a batch of rollouts (one parameter set, ``--batch`` initial states).
 
@@ -33,8 +34,8 @@ ROBOTS = {
 }
 
 
-def _case(robot: str, steps: int, batch: int, repeats: int) -> dict:
-    """One case, in this process: the figures of the module docstring."""
+def _case(robot: str, steps: int, batch: int, repeats: int, jit_name: str) -> dict:
+    """One case, in this process: first calls under ``jit_name``; with jaxskid.jit also run times and memory."""
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -62,14 +63,16 @@ def _case(robot: str, steps: int, batch: int, repeats: int) -> dict:
         "forward": jax.jacfwd(lambda p: loss(p, "forward")),
     }
     out = {"robot": robot, "n_dof": n, "n_params": len(p0), "steps": steps, "batch": batch}
+    jit = jaxskid.jit if jit_name == "jaxskid" else jax.jit
     for name, fn in fns.items():
-        for jit_name, jit in (("jaxskid", jaxskid.jit), ("jax", jax.jit)):
-            if name == "forward" and jit_name == "jax":
-                continue
-            f = jit(fn)
-            start = time.perf_counter()
-            jax.block_until_ready(f(p0))
-            out[f"{name}_first_{jit_name}"] = time.perf_counter() - start
+        if name == "forward" and jit_name == "jax":
+            continue
+        f = jit(fn)
+        start = time.perf_counter()
+        jax.block_until_ready(f(p0))
+        out[f"{name}_first_{jit_name}"] = time.perf_counter() - start
+        if jit_name == "jax":
+            continue
         times = []
         for _ in range(repeats):
             start = time.perf_counter()
@@ -102,11 +105,11 @@ def main() -> None:
     parser.add_argument("--steps", default="500,2000")
     parser.add_argument("--batch", type=int, default=64)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--case", nargs=4, help=argparse.SUPPRESS)
+    parser.add_argument("--case", nargs=5, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.case:
-        robot, steps, batch, repeats = args.case
-        print(json.dumps(_case(robot, int(steps), int(batch), int(repeats))))
+        robot, steps, batch, repeats, jit_name = args.case
+        print(json.dumps(_case(robot, int(steps), int(batch), int(repeats), jit_name)))
         return
     print("| robot | steps | batch | loss | reverse grad | ratio | forward grad (jacfwd) | ratio "
           "| first call loss / grad, jaxskid.jit: cold, warm | grad first call, jax.jit: cold, warm "
@@ -115,9 +118,11 @@ def main() -> None:
     for robot in args.robots.split(","):
         for steps in map(int, args.steps.split(",")):
             for batch in (0, args.batch):
+                case = [robot, str(steps), str(batch), str(args.repeats)]
                 with tempfile.TemporaryDirectory() as cache:
-                    case = [robot, str(steps), str(batch), str(args.repeats)]
-                    cold, warm = _in_process(case, cache), _in_process(case, cache)
+                    cold, warm = _in_process([*case, "jaxskid"], cache), _in_process([*case, "jaxskid"], cache)
+                with tempfile.TemporaryDirectory() as cache:
+                    cold_jax, warm_jax = _in_process([*case, "jax"], cache), _in_process([*case, "jax"], cache)
                 loss, rev, fwd = cold["loss_time"], cold["reverse_time"], cold["forward_time"]
                 print(
                     f"| {robot} ({cold['n_dof']}, {cold['n_params']} params) | {steps} | {batch or 1} "
@@ -125,7 +130,7 @@ def main() -> None:
                     f"| {fwd / loss:.0f}x "
                     f"| {cold['loss_first_jaxskid']:.1f} / {cold['reverse_first_jaxskid']:.1f} s, "
                     f"{warm['loss_first_jaxskid']:.1f} / {warm['reverse_first_jaxskid']:.1f} s "
-                    f"| {cold['reverse_first_jax']:.1f} s, {warm['reverse_first_jax']:.1f} s "
+                    f"| {cold_jax['reverse_first_jax']:.1f} s, {warm_jax['reverse_first_jax']:.1f} s "
                     f"| {_mb(cold.get('loss_memory'))} / {_mb(cold.get('reverse_memory'))} |",
                     flush=True,
                 )

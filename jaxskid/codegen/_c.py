@@ -12,6 +12,7 @@ returning ``std::array`` (``p`` defaults to ``default_params``). Both compile wa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from sympy.printing.c import C99CodePrinter
@@ -113,14 +114,33 @@ FFI_QUANTITIES = ("mass_matrix", "inverse_dynamics_vjp")
 (:mod:`jaxskid.lowering._ffi`)."""
 
 
+def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
+    """The quantities of ``names`` that get a native kernel on CPU (:mod:`jaxskid.lowering._ffi`): those
+    with matrix-valued results (M, C, the regressor, Jacobians, time derivatives, poses). XLA compiles their
+    many entries into programs whose cost grows faster than the arithmetic; vectors stay in JAX, where XLA
+    fuses them with the caller's program."""
+    return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2)
+
+
 def native_block(eqs, names: Sequence[str]) -> str:
-    """Python source assigning ``NATIVE_C``, the C of :data:`FFI_QUANTITIES` (``{"stem", "header",
-    "source"}``), for appending to a generated JAX module; ``""`` when ``names`` lack them."""
-    if not set(FFI_QUANTITIES) <= set(names):
+    """Python source assigning ``NATIVE_C`` for appending to a generated JAX module: the C of the native
+    kernels of ``names`` (``{"stem", "header", "source", "backward", "kernels"}``): the backward step of
+    forward dynamics when ``names`` hold :data:`FFI_QUANTITIES` (``backward``), and the
+    :func:`native_quantities`, each as ``(name, input sizes, input core ranks, output size, output rank)``
+    with the parameters last; ``""`` when there are none."""
+    backward = set(FFI_QUANTITIES) <= set(names)
+    kernels = native_quantities(eqs, names)
+    if not (backward or kernels):
         return ""
-    layout = Layout(eqs, FFI_QUANTITIES)
+    layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])))
     files = emit_c(layout)
-    native = {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"]}
+    table = []
+    for name in kernels:
+        args = (*eqs.quantities[name].args, "p")
+        table.append((name, tuple(layout.arg_size(a) for a in args), tuple(len(layout.arg_shape(a)) for a in args),
+                      math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
+    native = {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"],
+              "backward": backward, "kernels": tuple(table)}
     return f"\nNATIVE_C = {native!r}\n"
 
 

@@ -1,23 +1,27 @@
-"""Generated C as a kernel of XLA programs: the backward step of forward dynamics, built with a handler of
-XLA's foreign function interface (the C API of ``xla/ffi/api/c_api.h``, shipped with jaxlib).
+"""Generated C as kernels of XLA programs: the matrix-valued quantities and the backward step of forward
+dynamics, built with handlers of XLA's foreign function interface (the C API of ``xla/ffi/api/c_api.h``,
+shipped with jaxlib).
 
-On CPU, XLA compiles a generated program of a few thousand scalar operations into a hundred or more small
-kernels, each paying the runtime's dispatch; the backward pass of a rollout step ran 116 of them per RK4
-stage against 9 for the forward pass, and the gradient cost 10-30 times the loss. The same arithmetic as
-one C function is one kernel. :func:`ffi_library` builds
+On CPU, XLA compiles a generated program of thousands of scalar operations into many small kernels, or,
+for a result of n^2 or n * 10 n entries, into select chains whose work grows with the number of entries
+(the G1's regressor, 29 x 290: 159-240 us per state). The same arithmetic as one C function is one kernel.
+:func:`glue_source` writes, for the generated C of :func:`jaxskid.codegen._c.native_block`:
 
-    jaxskid_fd_vjp(q, qd, qdd, g, p) -> [lambda, -vjp]     lambda = M(q)^-1 g,
-                                                            vjp = lambda^T d ID(q, qd, qdd, p)/d(q, qd, p)
+* ``jaxskid_<quantity>(*state, p) -> out`` per matrix-valued quantity, four states at a time in vectors
+  of doubles (GCC/Clang vector extensions; AVX2 where the CPU has it), with sine and cosine as vector
+  polynomials; a batch's leading axes broadcast (an input shared by all states is read once);
+* ``jaxskid_fd_vjp(q, qd, qdd, g, p) -> [lambda, -vjp]``, lambda = M(q)^-1 g and
+  vjp = lambda^T d ID(q, qd, qdd, p)/d(q, qd, p), from ``mass_matrix``, ``inverse_dynamics_vjp`` and an
+  L D L^T solve (:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation).
 
-from the generated C of ``mass_matrix`` and ``inverse_dynamics_vjp`` and a hand-written L D L^T solve
-(:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation), compiled as one translation unit so that
-both inline and share each joint's sine and cosine. The handler loops over a batch (the
-leading axes of the output; an argument whose size is one state's is shared by all), and takes float32
-or float64, computing in double. Nothing here knows SymPy: a build takes C text.
+Long functions are split into pieces (:func:`_chunked`): GCC's register allocation is quadratic in a
+function's length. Handlers take float32 or float64 and compute in double. Nothing here knows SymPy: a
+build takes C text.
 """
 
 from __future__ import annotations
 
+import functools
 import re
 import subprocess
 from collections.abc import Mapping
@@ -32,32 +36,66 @@ compiler computes each joint's once (the generated vector-Jacobian product repea
 TARGET = "jaxskid_fd_vjp"
 """The exported handler of a library built by :func:`ffi_library`."""
 
-_GLUE = r"""
+_PRELUDE = r"""
+#define _POSIX_C_SOURCE 200112L
 #include <math.h>
 #include <stdint.h>
 #include <stddef.h>
+#include <stdlib.h>
 #include "xla/ffi/api/c_api.h"
-#include "@STEM@.c"  /* one translation unit: M and the VJP inline here and share sin, cos */
+#include "@STEM@.@INCLUDE@"  /* the scalar C where a kernel calls it (one translation unit), else its macros */
 
 #define N @STEM_UPPER@_N_DOF
 #define NP @STEM_UPPER@_N_PARAMS
+#define NP1 (NP > 0 ? NP : 1)
+
+static int64_t numel(const XLA_FFI_Buffer *b)
+{
+    int64_t n = 1;
+    for (int64_t i = 0; i < b->rank; i++) n *= b->dims[i];
+    return n;
+}
+
+static double load(const XLA_FFI_Buffer *b, int64_t i)
+{
+    return b->dtype == XLA_FFI_DataType_F64 ? ((const double *)b->data)[i] : ((const float *)b->data)[i];
+}
+
+static void store(XLA_FFI_Buffer *b, int64_t i, double x)
+{
+    if (b->dtype == XLA_FFI_DataType_F64) ((double *)b->data)[i] = x;
+    else ((float *)b->data)[i] = (float)x;
+}
+
+/* The instantiation stage asks for the handler's API version; 1 then, 0 to execute. */
+static int metadata(XLA_FFI_CallFrame *call)
+{
+    if (call->extension_start == NULL || call->extension_start->type != XLA_FFI_Extension_Metadata) return 0;
+    XLA_FFI_Metadata *meta = ((XLA_FFI_Metadata_Extension *)call->extension_start)->metadata;
+    meta->api_version.major_version = XLA_FFI_API_MAJOR;
+    meta->api_version.minor_version = XLA_FFI_API_MINOR;
+    meta->traits = 0;
+    return 1;
+}
+"""
+
+_BACKWARD = r"""
 #define NV @STEM_UPPER@_INVERSE_DYNAMICS_VJP_SIZE
 #define NO (N + NV)
-#define NP1 (NP > 0 ? NP : 1)
 
 #ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), the functions rewritten below */
 #define W LANES
 typedef double T __attribute__((vector_size(8 * LANES)));
 #define LANE(x, l) ((x)[l])
-#define LIFT(e) ((T){0} + (e))
+#define TLIFT(e) ((T){0} + (e))
 static inline int same(T x) { for (int l = 1; l < W; l++) if (x[l] != x[0]) return 0; return 1; }
 /* lane-wise sin and cos; a single state fills every lane, and costs one call */
-static inline T vsin(T x) { T r; if (same(x)) return LIFT(sin(x[0])); for (int l = 0; l < W; l++) r[l] = sin(x[l]); return r; }
-static inline T vcos(T x) { T r; if (same(x)) return LIFT(cos(x[0])); for (int l = 0; l < W; l++) r[l] = cos(x[l]); return r; }
+static inline T Tsin(T x) { T r; if (same(x)) return TLIFT(sin(x[0])); for (int l = 0; l < W; l++) r[l] = sin(x[l]); return r; }
+static inline T Tcos(T x) { T r; if (same(x)) return TLIFT(cos(x[0])); for (int l = 0; l < W; l++) r[l] = cos(x[l]); return r; }
 static inline T positive_or_nan(T s) { for (int l = 0; l < W; l++) if (!(s[l] > 0)) s[l] = NAN; return s; }
 @LANE_FUNCTIONS@
-#define MASS @STEM@_mass_matrix_lanes
-#define VJP @STEM@_inverse_dynamics_vjp_lanes
+#define MASS @STEM@_mass_matrix_T
+#define VJP @STEM@_inverse_dynamics_vjp_T
 #else
 #define W 1
 typedef double T;
@@ -97,34 +135,9 @@ static void backward(const T *q, const T *qd, const T *a, const T *g, const T *p
     for (int i = N; i < NO; i++) out[i] = -out[i];
 }
 
-static int64_t numel(const XLA_FFI_Buffer *b)
-{
-    int64_t n = 1;
-    for (int64_t i = 0; i < b->rank; i++) n *= b->dims[i];
-    return n;
-}
-
-static double load(const XLA_FFI_Buffer *b, int64_t i)
-{
-    return b->dtype == XLA_FFI_DataType_F64 ? ((const double *)b->data)[i] : ((const float *)b->data)[i];
-}
-
-static void store(XLA_FFI_Buffer *b, int64_t i, double x)
-{
-    if (b->dtype == XLA_FFI_DataType_F64) ((double *)b->data)[i] = x;
-    else ((float *)b->data)[i] = (float)x;
-}
-
 XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 {
-    if (call->extension_start != NULL && call->extension_start->type == XLA_FFI_Extension_Metadata) {
-        XLA_FFI_Metadata *meta = ((XLA_FFI_Metadata_Extension *)call->extension_start)->metadata;
-        meta->api_version.major_version = XLA_FFI_API_MAJOR;
-        meta->api_version.minor_version = XLA_FFI_API_MINOR;
-        meta->traits = 0;
-        return NULL;
-    }
-    if (call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
+    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
         return NULL;
     static const int64_t size[5] = {N, N, N, N, NP};
     const XLA_FFI_Buffer *in[5];
@@ -151,17 +164,150 @@ XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 }
 """
 
+_GENERIC = r"""
+/* Quantity kernels: VW states at once in vectors of doubles (GCC and Clang vector extensions). */
+#define VW 4
+typedef double V __attribute__((vector_size(8 * VW)));
+#define VLIFT(e) ((V){0} + (e))
+typedef long long VI __attribute__((vector_size(8 * VW)));
+
+/* sin (quadrant 0) or cos (quadrant 1) of every lane: x = n pi/2 + r with |r| <= pi/4 (Cody & Waite's
+   three-part pi/2, exact products for |n| < 2^20), then the minimax polynomials of sin and cos on
+   [-pi/4, pi/4] (the coefficients of Moshier's Cephes library), chosen and signed by the quadrant.
+   Within 2 ulp of libm; lanes beyond 1e5 in magnitude, infinities and nan take libm's value. */
+static inline V Vtrig(V x, long long quadrant)
+{
+    const V shifter = VLIFT(6755399441055744.0); /* 1.5 * 2^52: adding it rounds to an integer */
+    const V n = (x * VLIFT(0.63661977236758134308) + shifter) - shifter;
+    V r = x - n * VLIFT(1.57079632673412561417e+00);
+    r = r - n * VLIFT(6.07710050630396597660e-11);
+    r = r - n * VLIFT(2.02226624879595063154e-21);
+    const V z = r * r;
+    V ps = VLIFT(1.58962301576546568060e-10);
+    ps = ps * z + VLIFT(-2.50507477628578072866e-8);
+    ps = ps * z + VLIFT(2.75573136213857245213e-6);
+    ps = ps * z + VLIFT(-1.98412698295895385996e-4);
+    ps = ps * z + VLIFT(8.33333333332211858878e-3);
+    ps = ps * z + VLIFT(-1.66666666666666307295e-1);
+    const V s = r + r * z * ps;
+    V pc = VLIFT(-1.13585365213876817300e-11);
+    pc = pc * z + VLIFT(2.08757008419747316778e-9);
+    pc = pc * z + VLIFT(-2.75573141792967388112e-7);
+    pc = pc * z + VLIFT(2.48015872888517045348e-5);
+    pc = pc * z + VLIFT(-1.38888888888730564116e-3);
+    pc = pc * z + VLIFT(4.16666666666665929218e-2);
+    const V c = VLIFT(1.0) - VLIFT(0.5) * z + z * z * pc;
+    const VI k = __builtin_convertvector(n, VI) + quadrant;
+    const VI odd = (k & 1) != 0, negative = (k & 2) != 0;
+    const VI sign = {(long long)(1ULL << 63), (long long)(1ULL << 63), (long long)(1ULL << 63), (long long)(1ULL << 63)};
+    V out = (V)((((VI)c) & odd) | (((VI)s) & ~odd));
+    out = (V)(((VI)out) ^ (negative & sign));
+    for (int l = 0; l < VW; l++)
+        if (!(x[l] > -1e5 && x[l] < 1e5)) out[l] = quadrant ? cos(x[l]) : sin(x[l]);
+    return out;
+}
+static inline V Vsin(V x) { return Vtrig(x, 0); }
+static inline V Vcos(V x) { return Vtrig(x, 1); }
+
+typedef void (*kernel)(const V *const *in, V *out);
+#define MAX_IN 8
+#define MAX_RANK 16
+
+/* Run `fn` over a batch. The result's leading axes are the batch and its last `out_rank` axes one state's
+   `n_out` entries; input i has `core[i]` trailing axes holding `size[i]` entries, and leading axes that
+   broadcast against the result's batch axes (right-aligned; an axis of 1, or a missing one, is shared). */
+static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size, const int64_t *core,
+                          int64_t n_out, int64_t out_rank, kernel fn)
+{
+    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != n_in
+        || call->rets.size != 1)
+        return NULL;
+    XLA_FFI_Buffer *res = (XLA_FFI_Buffer *)call->rets.rets[0];
+    const int64_t nb = res->rank - out_rank;
+    if (nb < 0 || nb > MAX_RANK) return NULL;
+    int64_t batch = 1, total = n_out;
+    for (int64_t d = 0; d < nb; d++) batch *= res->dims[d];
+    const XLA_FFI_Buffer *in[MAX_IN];
+    int64_t stride[MAX_IN][MAX_RANK];  /* entries between consecutive indices along each batch axis */
+    for (int i = 0; i < n_in; i++) {
+        in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
+        const int64_t ib = in[i]->rank - core[i];
+        int64_t step = size[i];
+        for (int64_t d = nb - 1; d >= 0; d--) {
+            const int64_t id = d - (nb - ib);
+            const int64_t extent = id >= 0 ? in[i]->dims[id] : 1;
+            stride[i][d] = extent == 1 ? 0 : step;
+            step *= extent;
+        }
+        total += size[i];
+    }
+    V *buffer = NULL;
+    if (posix_memalign((void **)&buffer, sizeof(V), (size_t)(total > 0 ? total : 1) * sizeof(V)) != 0) return NULL;
+    const V *x[MAX_IN];
+    V *out = buffer;
+    for (int i = 0, at = (int)n_out; i < n_in; at += (int)size[i], i++) x[i] = buffer + at;
+    int shared[MAX_IN];  /* the same entries for every state (parameters, mostly): loaded once */
+    for (int i = 0; i < n_in; i++) {
+        shared[i] = 1;
+        for (int64_t d = 0; d < nb; d++) shared[i] &= stride[i][d] == 0;
+        if (shared[i]) {
+            V *xi = (V *)x[i];
+            for (int64_t k = 0; k < size[i]; k++) xi[k] = VLIFT(load(in[i], k));
+        }
+    }
+    const int f64 = res->dtype == XLA_FFI_DataType_F64;
+    for (int64_t b = 0; b < batch; b += VW) {
+        for (int l = 0; l < VW; l++) {  /* a last partial group repeats its last state */
+            int64_t s = b + l < batch ? b + l : batch - 1, off[MAX_IN] = {0};
+            for (int64_t d = nb - 1; d >= 0; d--) {
+                const int64_t k = s % res->dims[d];
+                s /= res->dims[d];
+                for (int i = 0; i < n_in; i++) off[i] += k * stride[i][d];
+            }
+            for (int i = 0; i < n_in; i++) {
+                if (shared[i]) continue;
+                V *xi = (V *)x[i];
+                for (int64_t k = 0; k < size[i]; k++) xi[k][l] = load(in[i], off[i] + k);
+            }
+        }
+        fn(x, out);
+        const int m = batch - b < VW ? (int)(batch - b) : VW;
+        if (f64) {
+            double *r = (double *)res->data + b * n_out;
+            for (int l = 0; l < m; l++)
+                for (int64_t k = 0; k < n_out; k++) r[l * n_out + k] = out[k][l];
+        } else {
+            float *r = (float *)res->data + b * n_out;
+            for (int l = 0; l < m; l++)
+                for (int64_t k = 0; k < n_out; k++) r[l * n_out + k] = (float)out[k][l];
+        }
+    }
+    free(buffer);
+    return NULL;
+}
+"""
+
+_QUANTITY = r"""
+static void call_@NAME@(const V *const *x, V *out) { @STEM@_@NAME@_V(@ARGS@, out); }
+static const int64_t size_@NAME@[] = {@SIZES@}, core_@NAME@[] = {@CORES@};
+XLA_FFI_Error *jaxskid_@NAME@(XLA_FFI_CallFrame *call)
+{
+    return run(call, @N_IN@, size_@NAME@, core_@NAME@, @N_OUT@, @OUT_RANK@, call_@NAME@);
+}
+"""
+
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
 
 _CALL = re.compile(r"\b([A-Za-z_]\w*)\s*\(")
 
 
-def lane_functions(source: str, stem: str, names: tuple[str, ...]) -> str | None:
+def lane_functions(source: str, stem: str, names: tuple[str, ...], vec: str = "T") -> str | None:
     """The generated C functions ``<stem>_<name>`` of ``source`` rewritten over vectors of ``LANES`` states
-    (``<stem>_<name>_lanes``, type ``T``): every ``double`` becomes ``T``, ``sin``/``cos`` their lane-wise
-    forms, a right-hand side that is a number is made a vector. None when a body calls any other function or has a
-    conditional (the scalar kernel serves)."""
+    (``<stem>_<name>_<vec>``, of the vector type ``vec``): every ``double`` becomes ``vec``, ``sin``/``cos``
+    the glue's lane-wise ``<vec>sin``/``<vec>cos``, a right-hand side that is a number is made a vector
+    (``<vec>LIFT``). None when a body calls any other function or has a conditional (the scalar kernel or
+    the JAX function serves)."""
     out = []
     for name in names:
         fn = f"{stem}_{name}"
@@ -171,22 +317,77 @@ def lane_functions(source: str, stem: str, names: tuple[str, ...]) -> str | None
         params, body = m.group(1), m.group(2)
         if "?" in body or set(_CALL.findall(body)) - {"sin", "cos"}:
             return None
-        params = params.replace("const double *", "const T *").replace("double *out", "T *out")
-        body = re.sub(r"\bconst double\b", "const T", body)
-        body = re.sub(r"\b(sin|cos)\(", r"v\1(", body)
-        body = re.sub(r"^(\s*[^=\n]+?) = (.+);$", _lift_constant, body, flags=re.M)
-        out.append(f"static void {fn}_lanes({params})\n{{\n{body}}}\n")
+        params = params.replace("const double *", f"const {vec} *").replace("double *out", f"{vec} *out")
+        body = re.sub(r"\bconst double\b", f"const {vec}", body)
+        body = re.sub(r"\b(sin|cos)\(", rf"{vec}\1(", body)
+        body = re.sub(r"^(\s*[^=\n]+?) = (.+);$", functools.partial(_lift_constant, lift=f"{vec}LIFT"), body,
+                      flags=re.M)
+        out.append(_chunked(f"{fn}_{vec}", params, body, vec))
     return "\n".join(out)
+
+
+CHUNK = 256
+"""Statements per function of a long generated body (:func:`_chunked`)."""
+
+LONG = 1024
+"""Bodies up to this many statements stay one function (split, the Panda's regressor ran 25% slower)."""
+
+_DEF = re.compile(r"^\s*const (\w+) (\w+) = (.*);$")
+_NAME = re.compile(r"\b[A-Za-z_]\w*\b")
+
+
+def _chunked(name: str, params: str, body: str, vec: str) -> str:
+    """The function ``name(params)`` with ``body``, split into functions of :data:`CHUNK` statements that
+    pass the values later pieces read through a workspace. GCC's register allocator takes time quadratic in
+    a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7 minutes at ``-O1``); pieces of a few
+    hundred statements compile in linear time, and only the values that cross a boundary go to memory."""
+    lines = body.splitlines()
+    if len(lines) <= LONG:
+        return f"static void {name}({params})\n{{\n{body}}}\n"
+    defined: dict[str, int] = {}  # variable -> the chunk defining it
+    inputs: dict[str, str] = {}  # variable -> its definition, for the reads of an input entry (read again)
+    reads: list[set[str]] = []
+    for k, line in enumerate(lines):
+        m = _DEF.match(line)
+        rhs = m.group(3) if m else line.split("=", 1)[-1]
+        reads.append({v for v in _NAME.findall(rhs) if v in defined})
+        if m:
+            defined[m.group(2)] = k // CHUNK
+            if re.fullmatch(r"\w+\[\d+\]", m.group(3)):
+                inputs[m.group(2)] = line
+    slots: dict[str, int] = {}
+    for k, used in enumerate(reads):
+        for v in sorted(used):
+            if defined[v] < k // CHUNK and v not in slots and v not in inputs:
+                slots[v] = len(slots)
+    args = ", ".join(re.findall(r"(\w+)(?:,|$)", params))
+    pieces, calls = [], []
+    for c in range(0, len(lines), CHUNK):
+        chunk = lines[c:c + CHUNK]
+        needed = sorted({v for used in reads[c:c + CHUNK] for v in used if defined[v] < c // CHUNK},
+                        key=lambda v: slots.get(v, -1))
+        text = [inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed]
+        for line in chunk:
+            text.append(line)
+            m = _DEF.match(line)
+            if m and m.group(2) in slots:
+                text.append(f"    w[{slots[m.group(2)]}] = {m.group(2)};")
+        piece = f"{name}_{c // CHUNK}"
+        pieces.append(f"static __attribute__((noinline)) void {piece}({params}, {vec} *w)\n{{\n"
+                      + "\n".join(text) + "\n}\n")
+        calls.append(f"    {piece}({args}, w);")
+    workspace = f"    {vec} w[{max(len(slots), 1)}];"
+    return "\n".join(pieces) + f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"
 
 
 _NUMBER = re.compile(r"\b\d+\.?\d*(?:[eE][-+]?\d+)?\b|\.\d+(?:[eE][-+]?\d+)?")
 
 
-def _lift_constant(m: re.Match) -> str:
+def _lift_constant(m: re.Match, lift: str) -> str:
     """An assignment whose right-hand side names no variable (a number: ``out[3] = 0.0;``) made a vector;
     the others already are (``0 + x`` is not folded in IEEE arithmetic, so nothing else is lifted)."""
     target, rhs = m.group(1), m.group(2)
-    return f"{target} = {rhs};" if re.search(r"[A-Za-z_]", _NUMBER.sub("", rhs)) else f"{target} = LIFT({rhs});"
+    return f"{target} = {rhs};" if re.search(r"[A-Za-z_]", _NUMBER.sub("", rhs)) else f"{target} = {lift}({rhs});"
 
 
 def _vector_flags() -> tuple[str, ...]:
@@ -205,19 +406,47 @@ def include_dir() -> str:
     return jax.ffi.include_dir()
 
 
-def ffi_library(native: Mapping[str, str], root: Path) -> Path:
+def glue_source(native: Mapping) -> tuple[str, bool]:
+    """The C of a library's handlers (it includes the generated ``<stem>.c``) and whether the backward
+    kernel computes in vectors: the backward step when ``native["backward"]``, and a handler
+    ``jaxskid_<name>`` per entry of ``native["kernels"]`` whose C has a vector form (the others are left
+    out; the JAX function serves them)."""
+    stem = native["stem"]
+    parts = [_PRELUDE]
+    lanes = None
+    if native.get("backward"):
+        lanes = lane_functions(native["source"], stem, ("mass_matrix", "inverse_dynamics_vjp"))
+        parts.append(_BACKWARD.replace("@LANE_FUNCTIONS@", lanes or ""))
+    quantities = []
+    for name, sizes, cores, n_out, out_rank in native.get("kernels", ()):
+        vector = lane_functions(native["source"], stem, (name,), vec="V")
+        if vector is None:
+            continue
+        args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
+        quantities.append(vector + _QUANTITY.replace("@NAME@", name).replace("@ARGS@", args)
+                          .replace("@SIZES@", ", ".join(map(str, sizes))).replace("@CORES@", ", ".join(map(str, cores)))
+                          .replace("@N_IN@", str(len(sizes))).replace("@N_OUT@", str(n_out))
+                          .replace("@OUT_RANK@", str(out_rank)))
+    if quantities:
+        parts += [_GENERIC, *quantities]
+    scalar = native.get("backward") and lanes is None
+    glue = "".join(parts).replace("@INCLUDE@", "c" if scalar else "h")
+    glue = glue.replace("@STEM_UPPER@", stem.upper()).replace("@STEM@", stem)
+    return glue, lanes is not None
+
+
+def ffi_library(native: Mapping, root: Path) -> Path:
     """Build (once per machine: keyed by a hash of everything that goes in) the shared library of the
-    ``jaxskid_fd_vjp`` handler for ``native`` (``{"stem", "header", "source"}``: the generated C of
-    ``mass_matrix`` and ``inverse_dynamics_vjp``, :func:`jaxskid.codegen._c.emit_c`), under ``root``.
+    handlers of :func:`glue_source` for ``native`` (``{"stem", "header", "source", "backward", "kernels"}``,
+    the generated C of :func:`jaxskid.codegen._c.native_block`), under ``root``.
 
     Raises:
         BuildError: no C compiler, no FFI header, or the build failed.
     """
     stem = native["stem"]
-    lanes = lane_functions(native["source"], stem, ("mass_matrix", "inverse_dynamics_vjp"))
-    glue = _GLUE.replace("@LANE_FUNCTIONS@", lanes or "").replace("@STEM_UPPER@", stem.upper())
-    glue = glue.replace("@STEM@", stem)
-    flags = (*CFLAGS, *FFI_CFLAGS, *((f"-DLANES={LANES}", *_vector_flags()) if lanes else ()))
+    glue, lanes = glue_source(native)
+    vectors = lanes or native.get("kernels")
+    flags = (*CFLAGS, *FFI_CFLAGS, *((f"-DLANES={LANES}",) if lanes else ()), *(_vector_flags() if vectors else ()))
     inc = include_dir()
     if not (Path(inc) / "xla" / "ffi" / "api" / "c_api.h").exists():
         raise BuildError(f"jaxlib has no FFI header under {inc}")

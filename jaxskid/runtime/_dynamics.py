@@ -20,7 +20,7 @@ import numpy as np
 from .._errors import ShapeError
 from ..model._parameters import ParameterLayout
 from ._base import QuantitySet
-from ._ffi import library
+from ._ffi import library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._forward import accelerations, forward_dynamics
 from ._jit import compiler_options, jit, outermost  # noqa: F401  (compiler_options, jit: imported from here too)
@@ -95,7 +95,8 @@ class Dynamics(QuantitySet):
         self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
         native_c = namespace.get("NATIVE_C")
         self._native_build = functools.partial(native, native_c) if native and native_c else None
-        self._native_target: str | None | bool = False  # False: not looked for yet
+        self._native_names = frozenset(k[0] for k in (native_c or {}).get("kernels", ()))
+        self._native_path: str | None | bool = False  # False: not built or looked for yet
 
     def raw(self, name: str, batched: bool = True) -> Callable:
         """The function of one state, ``f(*state, p)`` with ``p`` a parameter vector, to call inside your own
@@ -131,13 +132,16 @@ class Dynamics(QuantitySet):
             self._user_raw[(name, batched)] = fn
         return fn
 
-    def native_target(self) -> str | None:
-        """The registered XLA FFI target of the native backward kernel of forward dynamics
-        (:mod:`jaxskid.runtime._ffi`), built on first use; None where there is none (not lowered with
-        ``forward_dynamics``, turned off with ``JAXSKID_NATIVE=0``, or no C compiler)."""
-        if self._native_target is False:
-            self._native_target = library(self._native_build, self.robot_name)
-        return self._native_target
+    def native_target(self, name: str = "fd_vjp") -> str | None:
+        """The registered XLA FFI target of a native kernel (:mod:`jaxskid.runtime._ffi`): ``"fd_vjp"``, the
+        backward step of forward dynamics, or a matrix-valued quantity's name. The library is built on first
+        use; None where there is none (not lowered, a quantity without a vector form in C, turned off with
+        ``JAXSKID_NATIVE=0``, or no C compiler)."""
+        if name != "fd_vjp" and name not in self._native_names:
+            return None
+        if self._native_path is False:
+            self._native_path = library(self._native_build, self.robot_name)
+        return target(self._native_path, name)
 
     def generated(self, name: str, batched: bool = True) -> Callable:
         """The generated function of one state as it is, ``f(*state, p)``: what :meth:`raw` wraps, for
@@ -172,8 +176,11 @@ class Dynamics(QuantitySet):
     def _evaluate(self, name: str) -> Callable:
         """``call(*state, params, pair)``: the quantity on one state or a batch, with ``params`` already
         packed (:meth:`_packed`) and converted here, inside the jitted function."""
-        args, _ = self.signature(name)
+        args, shape = self.signature(name)
         raw, plain = self._raw[name], self._plain[name]
+        native = self.native_target(name)
+        if native is not None:  # the C kernel on CPU: one per batch, not a program per entry (jaxskid.runtime._ffi)
+            raw, plain = native_quantity(native, shape, raw), native_quantity(native, shape, plain)
         cores = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (self.n_dof,)) for a in args}
         n_params = (len(self.parameters),)
 
@@ -181,7 +188,7 @@ class Dynamics(QuantitySet):
             arrays, dtype = float_arrays(state)
             p = param_array(self.layout, params, dtype)
             batch = batch_shape(name, [(a, x.shape, cores[a]) for a, x in zip(args, arrays)], [("params", p.shape, n_params)])
-            if not batch and pair:
+            if not batch and pair and native is None:
                 # One state alone: XLA turns the broadcast inputs back into scalars and splits the function
                 # into a kernel per shared value (20 for the Panda's mass matrix: 117 us a call on 2
                 # cores). Mapped over the state and a second, all-zero one, it stays one kernel (8 us).

@@ -1,11 +1,11 @@
-"""The backward step of forward dynamics as one native kernel in XLA programs on CPU.
+"""Native kernels in XLA programs on CPU: the matrix-valued quantities and the backward step of forward
+dynamics, from the library of :mod:`jaxskid.lowering._ffi` (built by the caller's ``build`` function,
+which :func:`jaxskid.lower` supplies).
 
-:func:`native_backward` wraps the library of :mod:`jaxskid.lowering._ffi` (built by the caller's
-``build`` function, which :func:`jaxskid.lower` supplies) as a JAX function
-``(q, qd, qdd, g, p) -> (lambda, -vjp)`` of one state: ``jax.ffi.ffi_call`` on CPU, the pure-JAX
-function it replaces on every other platform (``lax.platform_dependent``), with that function's
-derivatives (``jax.custom_jvp``), so gradients of gradients still work. It maps over batches with the
-batch inside the kernel.
+:func:`native_quantity` and :func:`native_backward` wrap a handler as a JAX function of one state:
+``jax.ffi.ffi_call`` on CPU, the pure-JAX function it replaces on every other platform
+(``lax.platform_dependent``), with that function's derivatives (``jax.custom_jvp``), so ``jax.grad`` and
+gradients of gradients still work. They map over batches with the batch inside the kernel.
 
 ``JAXSKID_NATIVE=0`` in the environment turns it off; without a C compiler it is off, with one warning.
 """
@@ -22,7 +22,8 @@ import jax.numpy as jnp
 
 log = logging.getLogger("jaxskid")
 
-_TARGETS: dict[str, tuple[str, object]] = {}  # library path -> (registered target name, loaded library)
+_LIBRARIES: dict[str, object] = {}  # library path -> the loaded library
+_TARGETS: dict[tuple[str, str], str] = {}  # (library path, handler) -> its registered target name
 _WARNED: set[str] = set()
 
 
@@ -31,29 +32,81 @@ def enabled() -> bool:
     return os.environ.get("JAXSKID_NATIVE", "1").strip().lower() not in ("0", "false", "off", "no")
 
 
-def _register(path: str) -> str:
-    """Load the library at ``path`` and register its handler with XLA (once per process)."""
-    if path not in _TARGETS:
-        lib = ctypes.CDLL(path)
-        name = f"jaxskid_fd_vjp_{len(_TARGETS)}"
-        jax.ffi.register_ffi_target(name, jax.ffi.pycapsule(lib.jaxskid_fd_vjp), platform="cpu")
-        _TARGETS[path] = (name, lib)
-    return _TARGETS[path][0]
+def target(path: str | None, handler: str) -> str | None:
+    """The registered XLA target of the handler ``jaxskid_<handler>`` of the library at ``path`` (loaded and
+    registered once per process), or None where the library does not export it."""
+    if path is None:
+        return None
+    key = (path, handler)
+    if key not in _TARGETS:
+        lib = _LIBRARIES.get(path)
+        if lib is None:
+            lib = _LIBRARIES[path] = ctypes.CDLL(path)
+        symbol = getattr(lib, f"jaxskid_{handler}", None)
+        if symbol is None:
+            return None
+        name = f"jaxskid_{handler}_{len(_TARGETS)}"
+        jax.ffi.register_ffi_target(name, jax.ffi.pycapsule(symbol), platform="cpu")
+        _TARGETS[key] = name
+    return _TARGETS[key]
 
 
 def library(build: Callable[[], str] | None, label: str) -> str | None:
-    """The registered target of the library ``build()`` makes, or None (turned off, or the build failed:
-    logged once per robot, and the pure-JAX kernels serve)."""
+    """The path of the library ``build()`` makes, or None (turned off, or the build failed: logged once
+    per robot, and the pure-JAX kernels serve)."""
     if build is None or not enabled():
         return None
     try:
-        return _register(str(build()))
+        path = str(build())
+        ctypes.CDLL(path)  # a library that does not load is a failed build
+        return path
     except Exception as exc:  # no compiler, a failed build, an unloadable library: fall back, say why once
         if label not in _WARNED:
             _WARNED.add(label)
             log.warning("jaxskid: native kernels for %s unavailable (%s); using the JAX kernels", label,
                         " ".join(str(exc).split())[:300])
         return None
+
+
+def _dispatch(native: Callable, fallback: Callable) -> Callable:
+    """``native`` on CPU and ``fallback`` elsewhere, with the derivatives of ``fallback``. On a machine whose
+    devices are all CPUs the fallback is only traced for a derivative."""
+    cpu_only = all(d.platform == "cpu" for d in jax.devices())
+
+    @jax.custom_jvp
+    def kernel(*args):
+        if cpu_only:
+            return native(*args)
+        return jax.lax.platform_dependent(*args, cpu=native, default=fallback)
+
+    @kernel.defjvp
+    def _derivative(primals, tangents):
+        return jax.jvp(fallback, primals, tangents)
+
+    return kernel
+
+
+def native_quantity(target: str, shape: tuple[int, ...], fallback: Callable) -> Callable:
+    """``f(*state, p)``, a quantity of one state of shape ``shape``, computed by the registered ``target``
+    on CPU and by ``fallback`` (the generated JAX function) elsewhere, for other dtypes than float32 and
+    float64, and for derivatives. Under ``jax.vmap`` the batch goes into the kernel; unbatched inputs
+    (the parameters, mostly) are not copied per state."""
+
+    def native(*args):
+        dtype = jnp.result_type(*args)
+        args = [jnp.asarray(x, dtype) for x in args]
+        out = jax.ShapeDtypeStruct(shape, dtype)
+        return jax.ffi.ffi_call(target, out, vmap_method="expand_dims")(*args)
+
+    kernel = _dispatch(native, fallback)
+
+    def quantity(*args):
+        if jnp.result_type(*args) not in (jnp.float32, jnp.float64):
+            return fallback(*args)
+        return kernel(*args)
+
+    quantity.__name__ = getattr(fallback, "__name__", "quantity")
+    return quantity
 
 
 def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Callable:
@@ -67,16 +120,4 @@ def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Call
         out = jax.ffi.ffi_call(target, jax.ShapeDtypeStruct((n + n_out,), dtype), vmap_method="broadcast_all")(*args)
         return out[:n], out[n:]
 
-    cpu_only = all(d.platform == "cpu" for d in jax.devices())
-
-    @jax.custom_jvp
-    def kernel(q, qd, a, g, p):
-        if cpu_only:  # the JAX form is not traced where no other platform could run it
-            return native(q, qd, a, g, p)
-        return jax.lax.platform_dependent(q, qd, a, g, p, cpu=native, default=fallback)
-
-    @kernel.defjvp
-    def _derivative(primals, tangents):  # a gradient of a gradient differentiates the JAX form
-        return jax.jvp(fallback, primals, tangents)
-
-    return kernel
+    return _dispatch(native, fallback)

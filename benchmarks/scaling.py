@@ -1,0 +1,198 @@
+"""How the cost of each quantity grows with the robot, against Pinocchio in the same run.
+
+    python benchmarks/scaling.py [--robots ur5,panda,solo12,g1,g1_hands] [--batch 4096] [--repeats 7]
+                                 [--quantities ...] [--plot benchmarks/out/scaling.png]
+
+Robots (fixed base, from example-robot-data): UR5 (6 DOF), Panda (7, fingers locked), solo12 (12), the
+Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. For each robot and quantity:
+
+- ``cold``: derive + lower + compile + first call of that quantity alone, with an empty cache (generated
+  module, native library and XLA's compilation cache all in a fresh folder);
+- ``jaxskid``: the median time per state of the public function on a batch (``dyn.mass_matrix(q)``,
+  ``q`` of shape ``(batch, n)``, float64);
+- ``pinocchio``: the median time per call of Pinocchio's function for the same quantity from Python
+  (``rnea``, ``crba``, ``computeCoriolisMatrix``, ``computeJointTorqueRegressor``, ``aba``; for
+  ``mass_matrix_dot``, ``computeCoriolisMatrix`` and ``C + C^T``), and the ratio pinocchio / jaxskid
+  (> 1: jaxskid is faster per state).
+
+Quantities Pinocchio lacks (``mass_matrix_ddot``, ``coriolis_matrix_dot``, ``coriolis_matrix_ddot``, if
+asked for) are reported against jaxskid's own mass matrix at the same size. ``JAXSKID_NATIVE=0`` in the
+environment times the pure-JAX form of every quantity (the form used off CPU). The plot is time per state
+against DOF on log-log axes, one line per quantity for jaxskid (solid) and Pinocchio (dashed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+
+import jaxskid  # noqa: E402
+
+ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
+ROBOTS = {
+    "ur5": ("ur_description/urdf/ur5_robot.urdf", None),
+    "panda": ("panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
+    "solo12": ("solo_description/robots/solo12.urdf", None),
+    "g1": ("g1_description/urdf/g1_29dof_rev_1_0.urdf", None),
+    "g1_hands": ("g1_description/urdf/g1_29dof_with_hand_rev_1_0.urdf", None),
+}
+QUANTITIES = ("inverse_dynamics", "mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics",
+              "mass_matrix_dot")
+STATES = {  # the state arrays each quantity takes (tau for forward dynamics)
+    "inverse_dynamics": 3, "mass_matrix": 1, "coriolis_matrix": 2, "regressor": 3, "forward_dynamics": 3,
+    "mass_matrix_dot": 2, "mass_matrix_ddot": 3, "coriolis_matrix_dot": 3, "coriolis_matrix_ddot": 4,
+}
+
+
+def _pinocchio_model(path: Path, lock):
+    model = pin.buildModelFromUrdf(str(path))
+    if lock:
+        ids = [model.getJointId(name) for name in lock]
+        model = pin.buildReducedModel(model, ids, pin.neutral(model))
+    return model
+
+
+def _pinocchio_calls(model) -> dict:
+    data = model.createData()
+
+    def coriolis_sum(q, v, a):
+        c = pin.computeCoriolisMatrix(model, data, q, v)
+        return c + c.T
+
+    return {
+        "inverse_dynamics": lambda q, v, a: pin.rnea(model, data, q, v, a),
+        "mass_matrix": lambda q, v, a: pin.crba(model, data, q),
+        "coriolis_matrix": lambda q, v, a: pin.computeCoriolisMatrix(model, data, q, v),
+        "regressor": lambda q, v, a: pin.computeJointTorqueRegressor(model, data, q, v, a),
+        "forward_dynamics": lambda q, v, a: pin.aba(model, data, q, v, a),
+        "mass_matrix_dot": coriolis_sum,
+    }
+
+
+def _median(call, repeats: int) -> float:
+    call()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def _pinocchio_time(fn, states: np.ndarray, repeats: int) -> float:
+    count = min(len(states[0]), 256)
+
+    def loop():
+        for k in range(count):
+            fn(states[0][k], states[1][k], states[2][k])
+
+    return _median(loop, repeats) / count
+
+
+def measure(robot_name: str, quantities, batch: int, repeats: int) -> list[dict]:
+    """The rows of one robot: per quantity, cold time, jaxskid and Pinocchio per state."""
+    path, lock = ROBOTS[robot_name]
+    robot = jaxskid.load(ERD / path, lock=lock)
+    n = robot.n_dof
+    model = _pinocchio_model(ERD / path, lock)
+    assert model.nv == n, (model.nv, n)
+    rng = np.random.default_rng(0)
+    states = rng.uniform(-1, 1, size=(4, batch, n))
+    arrays = [jnp.asarray(s) for s in states]
+    pin_calls = _pinocchio_calls(model)
+    rows, mass_time = [], None
+    for name in quantities:
+        args = arrays[: STATES[name]]
+        with tempfile.TemporaryDirectory() as cache:
+            start = time.perf_counter()
+            dyn = jaxskid.lower(robot, [name], cache_dir=cache)
+            fn = getattr(dyn, name)
+            jax.block_until_ready(fn(*args))
+            cold = time.perf_counter() - start
+            ours = _median(lambda: jax.block_until_ready(fn(*args)), repeats) / batch
+        theirs = _pinocchio_time(pin_calls[name], states, repeats) if name in pin_calls else None
+        if name == "mass_matrix":
+            mass_time = ours
+        rows.append({"robot": robot_name, "n_dof": n, "quantity": name, "cold": cold, "jaxskid": ours,
+                     "pinocchio": theirs, "mass_matrix": mass_time})
+        _print_row(rows[-1])
+    return rows
+
+
+def _print_row(row: dict) -> None:
+    theirs = row["pinocchio"]
+    if theirs is not None:
+        peer = f"{theirs * 1e6:.2f} µs | {theirs / row['jaxskid']:.1f}x"
+    elif row["mass_matrix"]:
+        peer = f"- | {row['jaxskid'] / row['mass_matrix']:.1f}x M's cost"
+    else:
+        peer = "- | -"
+    print(f"| {row['robot']} | {row['n_dof']} | {row['quantity']} | {row['cold']:.1f} s "
+          f"| {row['jaxskid'] * 1e6:.2f} µs | {peer} |", flush=True)
+
+
+def plot(rows: list[dict], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    names = list(dict.fromkeys(r["quantity"] for r in rows))
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, name in enumerate(names):
+        mine = sorted((r["n_dof"], r["jaxskid"], r["pinocchio"]) for r in rows if r["quantity"] == name)
+        dofs = [m[0] for m in mine]
+        color = colors[k % len(colors)]
+        ax.plot(dofs, [1e6 * m[1] for m in mine], "o-", color=color, label=f"{name} (jaxskid)")
+        if all(m[2] is not None for m in mine):
+            ax.plot(dofs, [1e6 * m[2] for m in mine], "s--", color=color, alpha=0.6, label=f"{name} (Pinocchio)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("degrees of freedom")
+    ax.set_ylabel("time per state (µs)")
+    native = os.environ.get("JAXSKID_NATIVE", "1") not in ("0", "false", "off", "no")
+    ax.set_title(f"jaxskid per state (batch, {'native on CPU' if native else 'pure JAX'}) and Pinocchio per call")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--robots", default=",".join(ROBOTS))
+    parser.add_argument("--quantities", default=",".join(QUANTITIES))
+    parser.add_argument("--batch", type=int, default=4096)
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--plot", type=Path, default=Path(__file__).parent / "out" / "scaling.png")
+    args = parser.parse_args()
+    quantities = args.quantities.split(",")
+    if any(q not in STATES for q in quantities):
+        parser.error(f"--quantities: choose from {', '.join(STATES)}")
+    print(f"jax {jax.__version__}, Pinocchio {pin.__version__}, float64, batch {args.batch}, "
+          f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}")
+    print("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | Pinocchio per call | ratio |")
+    print("|---|---|---|---|---|---|---|")
+    rows = []
+    for robot in args.robots.split(","):
+        rows += measure(robot, quantities, args.batch, args.repeats)
+    if args.plot:
+        plot(rows, args.plot)
+        print(f"plot: {args.plot}")
+
+
+if __name__ == "__main__":
+    main()
