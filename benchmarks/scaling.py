@@ -147,6 +147,7 @@ def plot(rows: list[dict], out: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     fig, ax = plt.subplots(figsize=(7, 5))
     names = list(dict.fromkeys(r["quantity"] for r in rows))
@@ -160,6 +161,9 @@ def plot(rows: list[dict], out: Path) -> None:
             ax.plot(dofs, [1e6 * m[2] for m in mine], "s--", color=color, alpha=0.6, label=f"{name} (Pinocchio)")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    dofs = sorted({r["n_dof"] for r in rows})
+    ax.set_xticks(dofs, [str(d) for d in dofs])
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel("degrees of freedom")
     ax.set_ylabel("time per state (µs)")
     native = os.environ.get("JAXSKID_NATIVE", "1") not in ("0", "false", "off", "no")

@@ -39,7 +39,7 @@ from .._kernels import SOURCE as KERNELS_SOURCE
 from ..equations._derive import Equations
 from ._common import Kernel, Layout, NumberTweaks, statements, unravel
 
-GENERATOR_VERSION = "8"
+GENERATOR_VERSION = "9"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 
@@ -115,7 +115,7 @@ def _assemble(shape: tuple[int, ...], outputs: tuple, printer: JaxPrinter, dtype
 
     def build(axis: int, offset: int) -> str:
         """Expression for the block of entries from ``offset`` that share the indices before ``axis``."""
-        acc = "_z"
+        acc, depth = "_z", 0
         for i in range(shape[axis]):
             k = offset + i * stride[axis]
             if axis == len(shape) - 1:
@@ -131,10 +131,19 @@ def _assemble(shape: tuple[int, ...], outputs: tuple, printer: JaxPrinter, dtype
                     lines.append(f"_b{count[0]} = {value}")
                     value = f"_b{count[0]}"
             acc = f"jnp.where(_i{axis} == {i}, {value}, {acc})"
+            depth += 1
+            if depth == _MAX_NESTING:  # Python's parser refuses 200 nested parentheses: name the chain so far
+                count[0] += 1
+                lines.append(f"_b{count[0]} = {acc}")
+                acc, depth = f"_b{count[0]}", 0
         return acc
 
     lines.append(f"return {build(0, 0)}")
     return lines
+
+
+_MAX_NESTING = 64
+"""Selects nested in one expression of an output's where chain, at most (see :func:`_assemble`)."""
 
 
 def function_source(layout: Layout, k: Kernel, printer: JaxPrinter) -> str:

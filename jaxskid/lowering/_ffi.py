@@ -38,10 +38,12 @@ TARGET = "jaxskid_fd_vjp"
 
 _PRELUDE = r"""
 #define _POSIX_C_SOURCE 200112L
+#define _DEFAULT_SOURCE
 #include <math.h>
 #include <stdint.h>
 #include <stddef.h>
 #include <stdlib.h>
+#include <sys/mman.h>
 #include "xla/ffi/api/c_api.h"
 #include "@STEM@.@INCLUDE@"  /* the scalar C where a kernel calls it (one translation unit), else its macros */
 
@@ -256,6 +258,13 @@ static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size
         }
     }
     const int f64 = res->dtype == XLA_FFI_DataType_F64;
+#ifdef MADV_HUGEPAGE
+    {   /* a large result fills fresh pages: ask for 2 MB ones (512 times fewer page faults) */
+        const uintptr_t start = (uintptr_t)res->data, end = start + (uintptr_t)(batch * n_out * (f64 ? 8 : 4));
+        const uintptr_t lo = (start + (1u << 21) - 1) & ~(uintptr_t)((1u << 21) - 1), hi = end & ~(uintptr_t)((1u << 21) - 1);
+        if (hi > lo) madvise((void *)lo, hi - lo, MADV_HUGEPAGE);
+    }
+#endif
     for (int64_t b = 0; b < batch; b += VW) {
         for (int l = 0; l < VW; l++) {  /* a last partial group repeats its last state */
             int64_t s = b + l < batch ? b + l : batch - 1, off[MAX_IN] = {0};
