@@ -38,6 +38,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
+from core import median_time as _median  # noqa: E402  (benchmarks/core.py, beside this script)
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
@@ -78,16 +79,6 @@ def _pinocchio_calls(model) -> dict:
         "forward_dynamics": lambda q, v, a: pin.aba(model, data, q, v, a),
         "mass_matrix_dot": coriolis_sum,
     }
-
-
-def _median(call, repeats: int) -> float:
-    call()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        call()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def _pinocchio_time(fn, states: np.ndarray, repeats: int) -> float:
