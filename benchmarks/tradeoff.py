@@ -1,9 +1,12 @@
-"""Speed against accuracy for every option a user can choose: Panda (7 DOF) and the 12-DOF quadruped.
+"""Speed against accuracy for every option a user can choose: the 3-link arm (3 DOF), Panda (7 DOF) and the
+12-DOF quadruped.
 
     python benchmarks/tradeoff.py [--batch 16384] [--repeats 7] [--limit 45] [--out benchmarks/out]
+    python benchmarks/tradeoff.py --settings "tape (default),route=lagrange" --no-rollouts --name routes
 
-For each setting (CSE strategy, simplification, trig handling, closed form or the numeric recursive
-evaluation in JAX of ``jaxskid.testing._recursive``; float64 and float32) it measures:
+For each setting (CSE strategy, simplification, trig handling, the derivation route: screw or Euler-Lagrange,
+closed form or the numeric recursive evaluation in JAX of ``jaxskid.testing._recursive``; float64 and float32)
+it measures:
 
 * derive + print time (``jaxskid.lower`` on an empty cache) and the operation count, in a fresh process
   with a time limit (``--limit`` s): a setting that does not finish is reported as such;
@@ -21,8 +24,9 @@ at several tolerances, and diffrax's fixed-step Euler, Heun, Midpoint and classi
 the horizon against RK4 at a step 8x smaller than the smallest (its own error estimated by Richardson
 extrapolation) against work: vector-field evaluations and wall time per rollout.
 
-The table is printed and written to ``<out>/tradeoff.md``, the Pareto plot (time against error) to
-``<out>/tradeoff.png``; ``python benchmarks/tradeoff_rollouts.py`` runs the rollout study alone.
+The table is printed and written to ``<out>/<name>.md`` (``--name``, default ``tradeoff``), the Pareto plot
+(time against error) to ``<out>/<name>.png``; ``--settings`` picks settings by label, ``--no-rollouts`` skips
+the rollout study; ``python benchmarks/tradeoff_rollouts.py`` runs the rollout study alone.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots"))
 ROBOTS = {
+    "arm3": (ROOT / "robots" / "arm_3dof.yaml", None),
     "panda": (ERD / "panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
     "quadruped": (ROOT / "robots" / "quadruped_12dof.yaml", None),
 }
@@ -71,6 +76,7 @@ SETTINGS = (
     Setting("simplify=expand", "closed", {"simplify": "expand"}),
     Setting("simplify=trigsimp", "closed", {"simplify": "trigsimp"}),
     Setting("trig=inline", "closed", {"trig": "inline"}),
+    Setting("route=lagrange", "closed", {"route": "lagrange"}),
     Setting("recursive JAX", "recursive", {}),
 )
 
@@ -196,7 +202,8 @@ def references(key: str, states: dict):
     return robot, params, {q: (ref[q].hi, ref[q].lo) for q in QUANTITIES}, {q: np.array(v) for q, v in pins.items()}
 
 
-def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: str, repeats: int) -> list[dict]:
+def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: str, repeats: int,
+            settings=SETTINGS) -> list[dict]:
     """Compile every setting that was derived (and the recursive evaluation) in both dtypes; errors at the
     accuracy states; batched times, interleaved."""
     jax = _setup_jax()
@@ -206,7 +213,7 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
     from jaxskid.testing._recursive import recursive_dynamics
 
     rows, sources = [], {}
-    for setting in SETTINGS:
+    for setting in settings:
         row = {"robot": key, "setting": setting.label, "status": "ok", "compile": {}, "err_mp": {}, "err_pin": {}}
         if setting.kind == "recursive":
             t = time.perf_counter()
@@ -295,7 +302,8 @@ def table(results: list[dict], rollout_results: dict, args) -> str:
             compile_s = sum(r["compile"][dtype, q] for q in QUANTITIES)
             lines.append(f"| {r['robot']} | {r['setting']} | {dtype} | {r['derive']:.2f} | {ops} | {compile_s:.1f} | "
                          + " | ".join(cells) + " |")
-    lines += ["", tradeoff_rollouts.table(rollout_results)]
+    if rollout_results:
+        lines += ["", tradeoff_rollouts.table(rollout_results)]
     return "\n".join(lines) + "\n"
 
 
@@ -318,7 +326,9 @@ def plot(results: list[dict], rollout_results: dict, path: Path) -> None:
     import matplotlib.ticker
 
     robots = list(dict.fromkeys(r["robot"] for r in results))
-    fig, axes = plt.subplots(len(robots), len(QUANTITIES) + 2, figsize=(24, 4.4 * len(robots) + 0.8), squeeze=False)
+    extra = 2 if rollout_results else 0
+    fig, axes = plt.subplots(len(robots), len(QUANTITIES) + extra, figsize=(6 * (len(QUANTITIES) + extra),
+                             4.4 * len(robots) + 0.8), squeeze=False)
     colors = {s.label: plt.cm.tab10(k) for k, s in enumerate(SETTINGS)}
     markers = {"float64": "o", "float32": "^"}
     floor = 1e-17  # errors of exactly zero are drawn here
@@ -364,7 +374,16 @@ def main(argv=None):
                     help="seconds to derive one setting before it counts as not finished")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
     ap.add_argument("--robots", default=",".join(ROBOTS))
+    ap.add_argument("--settings", default=None, help="comma-separated setting labels (default: all)")
+    ap.add_argument("--rollouts", action=argparse.BooleanOptionalAction, default=True)
+    ap.add_argument("--name", default="tradeoff", help="stem of the table and plot written to --out")
     args = ap.parse_args(argv)
+    labels = [s.label for s in SETTINGS]
+    chosen = labels if args.settings is None else args.settings.split(",")
+    unknown = sorted(set(chosen) - set(labels))
+    if unknown:
+        ap.error(f"unknown setting(s) {unknown}; settings: {labels}")
+    settings = [s for s in SETTINGS if s.label in chosen]
     args.out.mkdir(parents=True, exist_ok=True)
     _setup_jax()
     start = time.perf_counter()
@@ -383,7 +402,7 @@ def main(argv=None):
                   f"in {time.perf_counter() - t:.1f} s", flush=True)
             derived = {}
             two = {k: v[:2] for k, v in states.items()}
-            for setting in SETTINGS:
+            for setting in settings:
                 if setting.kind != "closed":
                     continue
                 job = {"robot": key, "setting": setting, "states": two, "params": params, "ref": ref, "cache": cache}
@@ -394,7 +413,9 @@ def main(argv=None):
                 if status == "ok" and result.get("same_expressions", 0.0) > 1e-30:
                     raise AssertionError(f"{key} {setting.label}: the option changed the function "
                                          f"({result['same_expressions']:.3g} at 50 digits)")
-            results += measure(key, robot, states, params, ref, pins, derived, cache, args.repeats)
+            results += measure(key, robot, states, params, ref, pins, derived, cache, args.repeats, settings)
+            if not args.rollouts:
+                continue
             t = time.perf_counter()
             q0 = np.random.default_rng(1).uniform(-1, 1, size=(tradeoff_rollouts.N_ROLLOUTS, n))
             rollout_results[key] = tradeoff_rollouts.study(robot, q0, max(3, args.repeats // 2), cache)
@@ -402,9 +423,9 @@ def main(argv=None):
     text = table(results, rollout_results, args)
     print()
     print(text)
-    (args.out / "tradeoff.md").write_text(text)
-    plot(results, rollout_results, args.out / "tradeoff.png")
-    print(f"wrote {args.out / 'tradeoff.md'} and {args.out / 'tradeoff.png'} in {time.perf_counter() - start:.0f} s")
+    (args.out / f"{args.name}.md").write_text(text)
+    plot(results, rollout_results, args.out / f"{args.name}.png")
+    print(f"wrote {args.out / args.name}.md and .png in {time.perf_counter() - start:.0f} s")
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ from, statistics (chi-square), statics, a Lyapunov function and a textbook close
 from __future__ import annotations
 
 import importlib.util
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -72,3 +73,10 @@ def test_blog_3link(tmp_path):
     assert sp.simplify(out["Qgrav3"] + g * l3 * m3 * sp.cos(q2 + q3) / 2) == 0
     assert out["energy_drift"] < 1e-6
     assert out["figure"].exists()
+    # the blog's own arm: the Euler-Lagrange and screw routes agree identically and numerically
+    assert out["routes_identical"] is True
+    assert out["routes_max_diff"] < 1e-12
+    source = next(f for f in out["c_files"] if f.suffix == ".c")
+    compiled = subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", "-pedantic", "-c", "-o", str(tmp_path / "blog.o"),
+                               str(source)], capture_output=True, text=True)
+    assert compiled.returncode == 0, compiled.stderr

@@ -30,6 +30,13 @@ class QuantitySpec:
     needs_end_effector: bool = False
     derivatives: tuple[str, ...] = ()
     """Quantities the runtime differentiates this one with; :func:`jaxskid.lower` adds them to a request."""
+    lagrange: Callable[[Derivation], list] | None = None
+    """The builder of the Euler-Lagrange route (``Options(route="lagrange")``), where that route derives the
+    quantity its own way; ``None``: both routes build it with ``build``."""
+
+    def builder(self, route: str) -> Callable[[Derivation], list]:
+        """The builder of ``route`` (``"screw"`` or ``"lagrange"``)."""
+        return self.lagrange if route == "lagrange" and self.lagrange is not None else self.build
 
 
 # ---------------------------------------------------------------------------------------------- builders
@@ -104,6 +111,10 @@ def _poses(r: Robot) -> tuple[int, ...]:
     return (len(r.frame_names), 4, 4)
 
 
+def _scalar(r: Robot) -> tuple[int, ...]:
+    return ()
+
+
 def _vjp(r: Robot) -> tuple[int, ...]:
     return (2 * r.n_dof + len(r.parameters),)
 
@@ -160,6 +171,7 @@ _CATALOGUE = (
     QuantitySpec(
         "mass_matrix", ("q",), _square, lambda d: _matrix(sym.mass_matrix(d)),
         "M(q) = J^T diag(M_i) J", "Joint-space mass (inertia) matrix, symmetric positive definite.",
+        lagrange=lambda d: _matrix(sym.lagrange.mass_matrix(d)),
     ),
     QuantitySpec(
         "coriolis_matrix", ("q", "qd"), _square, lambda d: _matrix(sym.coriolis_matrix(d)),
@@ -169,15 +181,18 @@ _CATALOGUE = (
     QuantitySpec(
         "coriolis_torques", ("q", "qd"), _vector, sym.coriolis_torques,
         "C(q, qd) qd", "Coriolis and centrifugal generalized forces (recursive Newton-Euler).",
+        lagrange=sym.lagrange.coriolis_torques,
     ),
     QuantitySpec(
         "gravity_torques", ("q",), _vector, sym.gravity_torques,
         "Q_grav(q)", "Generalized gravity forces: the torques that hold the robot still.",
+        lagrange=sym.lagrange.gravity_torques,
     ),
     QuantitySpec(
         "inverse_dynamics", ("q", "qd", "qdd"), _vector, sym.inverse_dynamics,
         "tau = M(q) qdd + C(q, qd) qd + Q_grav(q)",
         "Joint forces for a motion (recursive Newton-Euler); add external_torques for end-effector loads.",
+        lagrange=sym.lagrange.inverse_dynamics,
     ),
     QuantitySpec(
         "external_torques", ("q", "wrench"), _vector, lambda d: sym.external_torques(d, _wrenches(d, 0)),
@@ -283,6 +298,18 @@ _CATALOGUE = (
         "Vector-Jacobian product of inverse dynamics at fixed qdd, w = cotangent: the gradients of w^T tau "
         "with respect to q, qd and the parameters, concatenated (2 n + n_params entries), by a symbolic "
         "reverse sweep of the Newton-Euler program. It differentiates forward dynamics in rollouts.",
+    ),
+    QuantitySpec(
+        "kinetic_energy", ("q", "qd"), _scalar, lambda d: [sym.kinetic_energy(d)],
+        "K(q, qd) = 1/2 sum_i V_i^T M_i V_i = 1/2 qd^T M(q) qd",
+        "Kinetic energy of the robot (a scalar).",
+        lagrange=lambda d: [sym.lagrange.kinetic_energy(d)],
+    ),
+    QuantitySpec(
+        "potential_energy", ("q",), _scalar, lambda d: [sym.potential_energy(d)],
+        "U(q) = -sum_i m_i g^T c_i, dU/dq = Q_grav(q)",
+        "Gravitational potential energy of the robot (a scalar), zero with every centre of mass at the world "
+        "origin.",
     ),
 )
 

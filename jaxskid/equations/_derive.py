@@ -145,7 +145,7 @@ def derive(
     built: dict[str, list] = {}
     for name in _progress(names, progress):
         spec = QUANTITIES[name]
-        outs = spec.build(d)
+        outs = spec.builder(options.route)(d)
         size = 1
         for n in spec.shape(robot):
             size *= n

@@ -12,6 +12,7 @@ _ALLOWED = {
     "cse": ("tape", "sympy", "none"),
     "simplify": ("none", "expand", "trigsimp"),
     "trig": ("symbols", "inline"),
+    "route": ("screw", "lagrange"),
 }
 
 
@@ -27,11 +28,16 @@ class Options:
             ``"trigsimp"`` (``sympy.trigsimp`` of each assignment).
         trig: ``"symbols"`` (default) names sin(q_i) and cos(q_i) once; ``"inline"`` leaves the calls
             in place.
+        route: how M, C qd, Q_grav, tau and the kinetic energy are derived. ``"screw"`` (default): the
+            Lie-group recursions (Newton-Euler, composite rigid body). ``"lagrange"``: the Euler-Lagrange
+            equations of the link energies (:mod:`jaxskid.symbolic._lagrange`), the seed blog's route, a
+            larger program. Every other quantity is the same on both routes.
     """
 
     cse: str = "tape"
     simplify: str = "none"
     trig: str = "symbols"
+    route: str = "screw"
 
     def __post_init__(self):
         for field_name, allowed in _ALLOWED.items():

@@ -13,15 +13,20 @@ derived together share their work. Each algorithm is a function of the derivatio
 * ``_time_kinematics`` and ``_time_dynamics``: closed-form time derivatives (Müller & Kumar 2021);
 * ``_regressor``: the inertial-parameter regressor;
 * ``_forward``: forward dynamics by the symbolic sparse ``L^T D L`` of M;
-* ``_adjoint``: reverse-mode differentiation of the tape (the vector-Jacobian product of inverse dynamics).
+* ``_adjoint``: differentiation of the tape, reverse mode (the vector-Jacobian product of inverse dynamics)
+  and forward mode;
+* ``_energy``: kinetic and potential energy;
+* ``_lagrange``: the Euler-Lagrange route to M, C qd, Q_grav and tau, from the link energies.
 
 The spatial algebra they share is :mod:`jaxskid.model._spatial`.
 """
 
-from ._adjoint import inverse_dynamics_vjp, vjp
+from . import _lagrange as lagrange
+from ._adjoint import inverse_dynamics_vjp, jvp, vjp
 from ._coriolis import coriolis_matrix
 from ._crba import mass_matrix
 from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
+from ._energy import kinetic_energy, potential_energy
 from ._forward import forward_dynamics
 from ._frames import (
     body_hybrid_acceleration, body_hybrid_twist, frame_hybrid_acceleration, frame_hybrid_twist, frame_motion,
@@ -59,6 +64,10 @@ __all__ = [
     "external_torques_derivative",
     "forward_dynamics",
     "inverse_dynamics_vjp",
+    "jvp",
+    "kinetic_energy",
+    "lagrange",
+    "potential_energy",
     "frame_hybrid_acceleration",
     "frame_hybrid_twist",
     "frame_motion",

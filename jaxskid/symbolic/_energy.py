@@ -1,0 +1,40 @@
+"""Kinetic and potential energy of the robot, on the tape.
+
+* ``K(q, qd) = 1/2 sum_i V_i^T M_i V_i``, with ``V_i`` the body twist and ``M_i`` the 6x6 mass-inertia of
+  body i in its frame (Featherstone 2008, eq. 2.61); ``K = 1/2 qd^T M(q) qd``.
+* ``U(q) = -sum_i g^T (R_i h_i + m_i p_i)``, with ``h_i = m_i c_i``: zero when every centre of mass is at the
+  world origin, so ``dU/dq = Q_grav``.
+
+The Euler-Lagrange route (:mod:`._lagrange`) forms K its own way, from the pose's time derivative.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from ..model import _spatial as sa
+from ._derivation import Derivation, memoized
+from ._kinematics import absolute, gravity, inertia, twist
+
+
+@memoized
+def kinetic_energy(d: Derivation) -> sp.Expr:
+    """``K = 1/2 sum_i V_i^T M_i V_i``."""
+    t = d.tape
+    total = []
+    for i in range(d.n):
+        v = twist(d, i)
+        total.append(t(sa.dot(v, t.vec(sa.apply_inertia_parts(sa.inertia_parts(inertia(d, i)), v)))))
+    return t(sp.Add(*total) / 2)
+
+
+@memoized
+def potential_energy(d: Derivation) -> sp.Expr:
+    """``U = -sum_i g^T (R_i h_i + m_i p_i)``."""
+    t, g = d.tape, gravity(d)
+    total = []
+    for i in range(d.n):
+        m, h, _ = sa.inertia_parts(inertia(d, i))
+        r, p = absolute(d, i)
+        total.append(t(-sa.dot(g, t.vec(sa.add(sa.matvec(r, h), sa.scale(p, m))))))
+    return t(sp.Add(*total))
