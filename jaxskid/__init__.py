@@ -26,6 +26,8 @@ from .apps._identification import (
 from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
 from .description._yaml_schema import DescriptionExtras, parse_description, read_description, read_extras
 from .description._yaml_writer import robot_to_dict, write_description
+from .description._dh import DH, dh_robot
+from .description._urdf_writer import write_urdf
 from .description._report import describe, draw_tree
 
 from ._version import __version__
@@ -65,6 +67,9 @@ __all__ = [
     "read_extras",
     "robot_to_dict",
     "write_description",
+    "DH",
+    "dh_robot",
+    "write_urdf",
     "describe",
     "draw_tree",
     "pose_xyzrpy",

@@ -219,7 +219,7 @@ def test_convert_panda_round_trip(tmp_path):
                 got, ref = raw(dyn, name, *args), raw(reference, name, *args)
                 assert np.max(np.abs(got - ref)) <= 1e-12 * max(1.0, np.max(np.abs(ref))), (path.name, name)
     assert jaxskid.load(tmp_path / "arm.json").parameters == jaxskid.load(ARM).parameters
-    exists, bad_suffix, bad_round = jaxskid_many(["convert", PANDA, out], ["convert", PANDA, tmp_path / "panda.urdf"],
+    exists, bad_suffix, bad_round = jaxskid_many(["convert", PANDA, out], ["convert", PANDA, tmp_path / "panda.txt"],
                                                  ["convert", PANDA, tmp_path / "p.yaml", "--round", "2"])
     one_line_error(exists, 1, "already exists")
     one_line_error(bad_suffix, 2, ".yaml")

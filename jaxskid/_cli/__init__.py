@@ -219,18 +219,23 @@ def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, tri
 @click.option("--urdf", type=click.Path(exists=True, dir_okay=False), default=None, metavar="PATH",
               help="Write a Python script (OUTPUT .py) that loads this URDF file instead of a chain template; "
                    "the path is written relative to OUTPUT's folder when that is short, else absolute.")
+@click.option("--dh", is_flag=True,
+              help="Describe the chain by a Denavit-Hartenberg table (a dh: block, standard convention; "
+                   "jaxskid.dh_robot in a .py) instead of screw coordinates and reference poses.")
 @click.argument("output", type=click.Path(dir_okay=False))
 @click.option("--name", default=None, help="The robot's name [default: the file name; with --urdf, the URDF's].")
 @FORCE
-def template(structure, dof, urdf, output, name, force):
+def template(structure, dof, urdf, dh, output, name, force):
     """Write a robot template to OUTPUT (.yaml, .yml, .json or .py) that loads, derives and lowers as it is.
 
     Give exactly one of -S, --dof or --urdf. The chain has one joint per letter; every length, mass and
-    inertia is a parameter with a default. With --urdf, OUTPUT is a Python script that loads the URDF.
+    inertia is a parameter with a default. With --dh, its kinematics is a Denavit-Hartenberg table. With
+    --urdf, OUTPUT is a Python script that loads the URDF.
 
     \b
     Examples:
       jaxskid template -S RRP robot.yaml
+      jaxskid template --dh -S RRR elbow.yaml
       jaxskid template --dof 6 arm6.json --name arm6
       jaxskid template -S PRR leg.py && python leg.py
       jaxskid template --urdf ur5.urdf ur5.py && python ur5.py
@@ -250,6 +255,8 @@ def template(structure, dof, urdf, output, name, force):
     if fmt is None or (urdf is not None and fmt != "py"):
         raise click.BadParameter(f"expected a {'.py' if urdf else '.yaml, .yml, .json or .py'} file name, "
                                  f"got {output!r}", param_hint="OUTPUT")
+    if dh and urdf is not None:
+        raise click.UsageError("--dh describes a chain of -S/--dof; a --urdf script loads the URDF's own kinematics")
     if urdf is not None:
         _urdf_template(urdf, Path(output), name, force)
         return
@@ -262,9 +269,9 @@ def template(structure, dof, urdf, output, name, force):
         name = re.sub(r"[^A-Za-z0-9_]+", "_", Path(output).stem).strip("_") or "robot"
         if name[0].isdigit():
             name = f"robot_{name}"
-    text = render_template(structure, fmt, name=name)
+    text = render_template(structure, fmt, name=name, kinematics="dh" if dh else "screws")
     _write_new(Path(output), text, force)
-    click.echo(f"wrote {output}: {len(structure)}-joint {structure.upper()} template '{name}'")
+    click.echo(f"wrote {output}: {len(structure)}-joint {structure.upper()} {'DH ' if dh else ''}template '{name}'")
 
 
 def _urdf_template(urdf: str, output: Path, name: str | None, force: bool) -> None:
@@ -311,10 +318,12 @@ def _write_new(path: Path, text: str, force: bool) -> None:
 @LOCK
 @FORCE
 def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force):
-    """Convert SOURCE (.urdf, .yaml, .json or .py) to OUTPUT in Skidy's YAML/JSON schema.
+    """Convert SOURCE (.urdf, .yaml, .json or .py) to OUTPUT in Skidy's YAML/JSON schema, or to URDF.
 
-    The output is in the body-fixed representation with 6x6 mass-inertia matrices; it loads back into
-    the same model (jaxskid.load). The format follows OUTPUT's extension (.yaml, .yml or .json).
+    The format follows OUTPUT's extension. YAML and JSON (.yaml, .yml, .json) are in the body-fixed
+    representation with 6x6 mass-inertia matrices. A .urdf holds numbers only: every parameter takes its
+    default (one without is an error), joints are revolute or prismatic with origin xyz/rpy and axis, and
+    each link's inertial is about its centre of mass. Either loads back into the same model (jaxskid.load).
 
     \b
     Examples:
@@ -322,14 +331,20 @@ def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force)
       jaxskid convert ur5.urdf ur5.json --symbolic-inertia
       jaxskid convert ur5.urdf ur5_symbols.yaml --symbolify --round 1e-10
       jaxskid convert arm.yaml arm.json
+      jaxskid convert puma_dh.yaml puma.urdf
     """
     import jaxskid
 
     from ..description._symbolify import symbolify_robot
     from ..description._yaml_writer import round_robot
 
-    if Path(output).suffix.lower() not in (".yaml", ".yml", ".json"):
-        raise click.BadParameter(f"expected a .yaml, .yml or .json file name, got {output!r}", param_hint="OUTPUT")
+    to_urdf = Path(output).suffix.lower() == ".urdf"
+    if Path(output).suffix.lower() not in (".yaml", ".yml", ".json", ".urdf"):
+        raise click.BadParameter(f"expected a .yaml, .yml, .json or .urdf file name, got {output!r}",
+                                 param_hint="OUTPUT")
+    if to_urdf and (symbolify or symbolic_inertia):
+        raise click.UsageError(f"{'--symbolify' if symbolify else '--symbolic-inertia'} makes parameters, "
+                               f"but a .urdf holds numbers only")
     if Path(output).exists() and not force:
         raise BadInput(f"{output} already exists; use --force to overwrite it")
     if Path(source).suffix.lower() == ".urdf":
@@ -341,10 +356,14 @@ def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force)
     if symbolify:
         robot = symbolify_robot(robot)
     try:
-        jaxskid.write_description(robot, output, force=force, rotations="rpy" if round_tol else "matrix")
+        if to_urdf:
+            jaxskid.write_urdf(robot, output, force=force)
+        else:
+            jaxskid.write_description(robot, output, force=force, rotations="rpy" if round_tol else "matrix")
     except FileExistsError:
         raise BadInput(f"{output} already exists; use --force to overwrite it") from None
-    click.echo(f"wrote {output}: {robot.name}, {robot.n_dof} joint(s), {len(robot.parameters)} parameter(s)")
+    values = "parameters at their defaults" if to_urdf else f"{len(robot.parameters)} parameter(s)"
+    click.echo(f"wrote {output}: {robot.name}, {robot.n_dof} joint(s), {values}")
 
 
 @cli.command()

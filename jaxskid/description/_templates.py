@@ -2,9 +2,17 @@
 
 A template is a serial chain with one joint per letter of the structure string (``R`` revolute, ``P``
 prismatic), every length, mass and inertia a named parameter with a plausible default, so that it loads,
-derives and lowers with no edits. Geometry: the first joint turns about (or slides along) the world z axis;
-every later revolute joint turns about its body's y axis and every later prismatic joint slides along its
-body's x axis; link i is ``L<i>`` long along its body's x axis, with its centre of mass in the middle.
+derives and lowers with no edits. Two forms of the kinematics:
+
+* ``screws`` (Skidy's ``joint_screw_coord`` and ``body_ref_config``): the first joint turns about (or slides
+  along) the world z axis; every later revolute joint turns about its body's y axis and every later prismatic
+  joint slides along its body's x axis; link i is ``L<i>`` long along its body's x axis, with its centre of
+  mass in the middle.
+* ``dh`` (a ``dh:`` table, standard convention, :mod:`._dh`): a revolute row is ``a = L<i>, alpha = 0``,
+  except the first, ``d = L1, alpha = pi/2`` (a base column; RRR is Spong's elbow manipulator); a prismatic
+  row is ``d = L<i>, alpha = theta = pi/2`` (so that consecutive prismatic joints slide along perpendicular
+  axes: PPP is a Cartesian robot). Link i is the segment from DH origin i-1 to origin i, with its centre of
+  mass in the middle; the end-effector is DH frame n.
 """
 
 from __future__ import annotations
@@ -12,9 +20,12 @@ from __future__ import annotations
 import json
 import re
 
+import sympy as sp
+
 from .._errors import RequestError
 
 FORMATS = ("yaml", "json", "py")
+KINEMATICS = ("screws", "dh")
 _STRUCTURE = re.compile(r"[RrPp]{1,64}")
 
 
@@ -100,17 +111,23 @@ def _yaml(structure: str, name: str | None) -> str:
     lines += ["", "ee:                              # end-effector frame on the last body",
               f"  translation: [L{n}, 0, 0]", "ee_names: [ee]", "",
               "mass_inertia:                    # per body: mass, centre of mass and inertia about it"]
-    for j in joints:
-        k = j["k"]
-        lines.append(f"  - {{mass: m{k}, com: [L{k}/2, 0, 0], inertia: [Ixx{k}, 0, 0, Iyy{k}, 0, Izz{k}], frame: com}}")
+    return "\n".join(lines + _yaml_inertias_and_assignments(data)) + "\n"
+
+
+def _yaml_inertias_and_assignments(data: dict) -> list[str]:
+    """The ``mass_inertia`` entries (after their key) and the ``assignments`` block, as YAML lines."""
+    lines = [f"  - {{mass: {m['mass']}, com: {_flow(m['com'])}, inertia: {_flow(m['inertia'])}, frame: {m['frame']}}}"
+             for m in data["mass_inertia"]]
     lines += ["", "assignments:                     # default values of the parameters (SI units)"]
-    for key, value in data["assignments"].items():
-        lines.append(f"  {key}: {value}")
-    return "\n".join(lines) + "\n"
+    return lines + [f"  {key}: {value}" for key, value in data["assignments"].items()]
 
 
 def _json(structure: str, name: str | None) -> str:
     return json.dumps(template_data(structure, name), indent=2) + "\n"
+
+
+def _dh_json(structure: str, name: str | None) -> str:
+    return json.dumps(dh_template_data(structure, name), indent=2) + "\n"
 
 
 def _python(structure: str, name: str | None) -> str:
@@ -158,18 +175,22 @@ def _python(structure: str, name: str | None) -> str:
         "    end_effectors=['ee'],",
         f"    defaults={data['assignments']!r},",
         ")",
-        "",
-        "",
-        "if __name__ == '__main__':",
-        "    import numpy as np",
-        "",
-        "    dyn = jaxskid.lower(robot, progress=True)",
-        "    print(dyn)",
-        "    print('M(0) =')",
-        "    print(np.asarray(dyn.mass_matrix(np.zeros(robot.n_dof))))",
-        "",
     ]
-    return "\n".join(lines)
+    return "\n".join(lines + _PYTHON_MAIN)
+
+
+_PYTHON_MAIN = [
+    "",
+    "",
+    "if __name__ == '__main__':",
+    "    import numpy as np",
+    "",
+    "    dyn = jaxskid.lower(robot, progress=True)",
+    "    print(dyn)",
+    "    print('M(0) =')",
+    "    print(np.asarray(dyn.mass_matrix(np.zeros(robot.n_dof))))",
+    "",
+]
 
 
 def urdf_script(urdf: str, *, name: str | None = None, command: str = "") -> str:
@@ -212,16 +233,153 @@ def urdf_script(urdf: str, *, name: str | None = None, command: str = "") -> str
     return "\n".join(lines)
 
 
-def render_template(structure: str, fmt: str, *, name: str | None = None) -> str:
+# ---------------------------------------------------------------------------------------------- DH tables
+def _dh_links(structure: str) -> list[dict]:
+    """Per joint: its DH row (SymPy entries), the centre of mass of its link in DH frame i and the axis
+    (0: x, 1: y) the link lies along. Standard DH with theta = 0 or pi/2: origin i-1 sits at
+    ``-Rx(alpha)^T (a, 0, d) = -(a, d sin alpha, d cos alpha)`` in frame i, whatever theta."""
+    check_structure(structure)
+    out = []
+    for i, letter in enumerate(structure.upper()):
+        k = i + 1
+        length = sp.Symbol(f"L{k}")
+        if letter == "R" and i > 0:
+            row = {"type": "revolute", "a": length, "alpha": sp.Integer(0), "d": sp.Integer(0), "theta": sp.Integer(0)}
+            com, axis = (-length / 2, 0, 0), 0
+        else:
+            row = {"type": "revolute" if letter == "R" else "prismatic", "a": sp.Integer(0), "alpha": sp.pi / 2,
+                   "d": length, "theta": sp.Integer(0) if letter == "R" else sp.pi / 2}
+            com, axis = (0, -length / 2, 0), 1
+        out.append({"k": k, "row": row, "com": com, "axis": axis})
+    return out
+
+
+def _dh_assignments(links: list[dict]) -> dict[str, float]:
+    values: dict[str, float] = {}
+    for link in links:
+        k = link["k"]
+        values.update({f"L{k}": 0.5, f"m{k}": 1.0})
+        for a, key in enumerate(("Ixx", "Iyy", "Izz")):  # a slender rod: small inertia about its own axis
+            values[f"{key}{k}"] = 0.001 if a == link["axis"] else 0.0208
+    values["g"] = 9.81
+    return values
+
+
+def _value(e):
+    return int(e) if sp.sympify(e).is_Integer else str(e)
+
+
+def dh_template_data(structure: str, name: str | None = None) -> dict:
+    """The DH template as a description mapping (a ``dh:`` table in the standard convention)."""
+    links = _dh_links(structure)
+    data: dict = {"name": name or structure.lower(), "gravity": [0, 0, "-g"]}
+    data["joint_names"] = [f"joint{link['k']}" for link in links]
+    data["link_names"] = [f"link{link['k']}" for link in links]
+    data["dh"] = {"convention": "standard",
+                  "joints": [{key: _value(v) if key != "type" else v for key, v in link["row"].items()}
+                             for link in links]}
+    data["ee"] = {"translation": [0, 0, 0]}
+    data["ee_names"] = ["ee"]
+    data["mass_inertia"] = [
+        {"mass": f"m{k}", "com": [_value(c) for c in link["com"]],
+         "inertia": [f"Ixx{k}", 0, 0, f"Iyy{k}", 0, f"Izz{k}"], "frame": "com"}
+        for link in links for k in [link["k"]]
+    ]
+    data["assignments"] = _dh_assignments(links)
+    return data
+
+
+def _dh_yaml(structure: str, name: str | None) -> str:
+    data = dh_template_data(structure, name)
+    letters = structure.upper()
+    lines = [
+        f"# {letters} robot: template written by `jaxskid template --dh -S {letters}`.",
+        "# A Denavit-Hartenberg table; edit it and the assignments, then",
+        "#   jaxskid info this.yaml        # joints, bodies, parameters, tree",
+        "#   jaxskid generate this.yaml    # derive, lower, self-check, write code",
+        "---",
+        f"name: {data['name']}",
+        "gravity: [0, 0, -g]             # gravitational acceleration in the world frame",
+        "",
+        f"joint_names: {_flow(data['joint_names'])}",
+        f"link_names: {_flow(data['link_names'])}",
+        "",
+        "dh:",
+        "  convention: standard          # frame i = frame i-1 Rz(theta) Tz(d) Tx(a) Rx(alpha); or modified",
+        "                                # (Craig): Rx(alpha) Tx(a) Rz(theta) Tz(d), a row holding a_{i-1},",
+        "                                # alpha_{i-1}, d_i, theta_i",
+        "  joints:                       # q adds to theta (revolute) or d (prismatic); body i's frame is DH frame i",
+    ]
+    for row in data["dh"]["joints"]:
+        lines.append("    - {" + ", ".join(f"{key}: {value}" for key, value in row.items()) + "}")
+    lines += ["", "ee:                              # end-effector: DH frame n, on the last body",
+              "  translation: [0, 0, 0]", "ee_names: [ee]", "",
+              "mass_inertia:                    # per body, in its DH frame: mass, centre of mass, inertia about it"]
+    return "\n".join(lines + _yaml_inertias_and_assignments(data)) + "\n"
+
+
+def _dh_python(structure: str, name: str | None) -> str:
+    links = _dh_links(structure)
+    data = dh_template_data(structure, name)
+    letters, n = structure.upper(), len(links)
+    lines = [
+        f'"""{letters} robot: template written by `jaxskid template --dh -S {letters}`.',
+        "",
+        "A Denavit-Hartenberg table in the standard convention: frame i = frame i-1 Rz(theta) Tz(d) Tx(a) Rx(alpha),",
+        "the joint variable added to theta (revolute) or d (prismatic); body i's frame is DH frame i. Edit the",
+        "table and the defaults, then run it (derives, lowers and prints M at q = 0), or use it wherever jaxskid's",
+        "command line takes a robot: `jaxskid info this.py`, `jaxskid generate this.py`; the command line reads",
+        "the variable `robot`.",
+        '"""',
+        "",
+        "import sympy as sp",
+        "from sympy import pi",
+        "",
+        "import jaxskid",
+        "from jaxskid import DH, Frame, dh_robot, pose, spatial_inertia",
+        "",
+    ]
+    for link in links:
+        names = " ".join(f"{p}{link['k']}" for p in ("L", "m", "Ixx", "Iyy", "Izz"))
+        lines.append(f"{', '.join(names.split())} = sp.symbols({names!r}, real=True)")
+    lines += ["g = sp.Symbol('g', real=True)", "",
+              "rows = [  # type, a, alpha, d, theta (standard DH; 'modified' for Craig's convention)"]
+    for link in links:
+        r = link["row"]
+        lines.append(f"    DH({r['type']!r}, a={r['a']}, alpha={r['alpha']}, d={r['d']}, theta={r['theta']}),")
+    lines += ["]", "", "inertias = [  # per body, in its DH frame: mass, centre of mass, inertia about it"]
+    for link in links:
+        k, com = link["k"], ", ".join(str(c) for c in link["com"])
+        lines.append(f"    spatial_inertia(m{k}, com=({com}), inertia=(Ixx{k}, 0, 0, Iyy{k}, 0, Izz{k})),")
+    lines += [
+        "]",
+        "",
+        f"robot = dh_robot({data['name']!r}, rows, inertias, convention='standard', gravity=(0, 0, -g),",
+        f"                 joint_names={data['joint_names']!r},",
+        f"                 link_names={data['link_names']!r},",
+        f"                 frames=[Frame('ee', {n - 1}, pose())],  # the end-effector: DH frame n",
+        "                 end_effectors=['ee'],",
+        f"                 defaults={data['assignments']!r})",
+    ]
+    return "\n".join(lines + _PYTHON_MAIN)
+
+
+def render_template(structure: str, fmt: str, *, name: str | None = None, kinematics: str = "screws") -> str:
     """The text of a robot template.
 
     Args:
         structure: joint types from base to tip, ``R`` revolute and ``P`` prismatic (``"RRP"``).
         fmt: ``"yaml"``, ``"json"`` or ``"py"``.
         name: the robot's name (default: the structure in lower case).
+        kinematics: ``"screws"`` (``joint_screw_coord`` and ``body_ref_config``) or ``"dh"`` (a
+            Denavit–Hartenberg table, ``jaxskid.dh_robot`` in Python).
     """
     if fmt not in FORMATS:
         raise RequestError(f"unknown template format {fmt!r}; expected one of {', '.join(FORMATS)}")
+    if kinematics not in KINEMATICS:
+        raise RequestError(f"unknown template kinematics {kinematics!r}; expected one of {', '.join(KINEMATICS)}")
     if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", name):
         raise RequestError(f"expected a robot name of letters, digits, _ and -, got {name!r}")
+    if kinematics == "dh":
+        return {"yaml": _dh_yaml, "json": _dh_json, "py": _dh_python}[fmt](structure, name)
     return {"yaml": _yaml, "json": _json, "py": _python}[fmt](structure, name)

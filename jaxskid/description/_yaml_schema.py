@@ -38,7 +38,10 @@ jaxskid keys
     ``joint_names``, ``link_names`` (default ``link1``..), ``ee_names`` (default ``ee`` or ``ee1``..),
     ``frames: [{name, parent, pose}]`` (named frames that are not end-effectors, ``parent`` as
     ``ee_parent``), ``frame_order`` (the order of all named frames, written only when it is not
-    end-effectors first), ``lock`` (joint name -> position, see :meth:`Robot.lock`).
+    end-effectors first), ``lock`` (joint name -> position, see :meth:`Robot.lock`), ``dh`` (a
+    Denavit–Hartenberg table in place of ``joint_screw_coord``, ``body_ref_config`` and ``representation``:
+    ``{convention: standard | modified, base: <pose>, joints: [{type, a, alpha, d, theta}, ...]}``, body i's
+    frame is DH frame i; :mod:`._dh`).
 
 Gravity. Skidy builds the base acceleration as ``Vd_0 = (0, -gravity_vector)`` and adds
 ``Q_grav = J^T Mb U Vd_0`` to ``M q2d + C qd`` (``src/skidy/kinematics_generator.py``), and its templates and
@@ -67,6 +70,7 @@ import sympy as sp
 from .._errors import DescriptionWarning, ModelError
 from ..model._robot import Frame, Joint, Robot, spatial_to_body
 from ..model._validate import check_parents, describe
+from ._dh import dh_size, joint_variables, read_dh
 from ._keymap import KeyMap
 from ._wrenches import DescriptionExtras, end_effector_wrenches
 from ._yaml_file import load_mapping
@@ -77,7 +81,8 @@ _SKIDY_KEYS = (
     "support", "child", "gravity", "gravity_vector", "q", "qd", "q2d", "q3d", "q4d", "WEE", "WDEE", "W2DEE",
     "assignments",
 )
-_JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock")
+_JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock", "dh")
+_GEOMETRY_KEYS = ("joint_screw_coord", "body_ref_config", "representation")  # what a dh block replaces
 _DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
 _WRENCHES = ("WEE", "WDEE", "W2DEE")
 
@@ -144,6 +149,7 @@ class _Parser(ValueReader):
         super().__init__(source)
         self.data = data
         self.keys = KeyMap({"defaults": "assignments", "end_effectors": "ee_names"})
+        self.count_key = "joint_screw_coord"  # the key whose length is the number of joints
 
     def parse(self) -> _Parsed:
         d = self.data
@@ -180,42 +186,64 @@ class _Parser(ValueReader):
         for key in d:
             if key not in allowed:
                 raise self.error(None, f"unknown key {key!r}; expected one of {', '.join(allowed)}")
-        for key in ("joint_screw_coord", "body_ref_config", "mass_inertia"):
+        geometry = ("joint_screw_coord", "body_ref_config") if "dh" not in d else ()
+        for key in (*geometry, "mass_inertia"):
             if key not in d:
                 raise self.error(key, "required key is missing" + (
                     " (the 6x6 mass-inertia matrix of every body; jaxskid does not assume massless bodies)"
                     if key == "mass_inertia" else ""))
+        if "dh" in d:
+            given = [key for key in _GEOMETRY_KEYS if key in d]
+            if given:
+                raise self.error(given[0], "give either a dh table or joint_screw_coord, body_ref_config and "
+                                           "representation, not both")
+            self.count_key = "dh.joints"
+            return dh_size(d["dh"], self)
         screws = d["joint_screw_coord"]
         if not isinstance(screws, list) or not screws:
             raise self.error("joint_screw_coord", f"expected a non-empty list (one entry per joint), got {describe(screws)}")
         return len(screws)
 
     def joints(self, n, joint_names, link_names) -> list[Joint]:
+        if "dh" in self.data:
+            parents = self.tree(n)
+            variables = {**joint_variables(joint_names), **joint_variables(self.data.get("q") or [])}
+            types, screws, poses = read_dh(self.data["dh"], self, parents, variables)
+            for i in range(n):
+                self.keys.add(f"joints[{i}].screw", f"dh.joints[{i}]")
+                self.keys.add(f"joints[{i}].origin", f"dh.joints[{i}]")
+        else:
+            types, screws, poses, parents = self.screws_and_poses(n)
+        inertias_in = self.entries("mass_inertia", n)
+        inertias = [self.mass_inertia(m, f"mass_inertia[{i}]") for i, m in enumerate(inertias_in)]
+        for i in range(n):
+            self.keys.add(f"joints[{i}].inertia", f"mass_inertia[{i}]")
+        return [Joint(joint_names[i], types[i], parents[i], poses[i], screws[i], inertias[i], link_names[i])
+                for i in range(n)]
+
+    def screws_and_poses(self, n) -> tuple[list, list, list, list[int]]:
+        """(types, body-fixed screws, body-fixed poses, parents) from ``joint_screw_coord`` and ``body_ref_config``."""
         representation = self.data.get("representation", "spatial")
         if representation not in ("spatial", "body_fixed"):
             raise self.error("representation", f"expected spatial or body_fixed, got {describe(representation)}")
         parents = self.tree(n)
         poses_in = self.entries("body_ref_config", n)
-        inertias_in = self.entries("mass_inertia", n)
         typed = [self.screw(s, f"joint_screw_coord[{i}]") for i, s in enumerate(self.data["joint_screw_coord"])]
         poses = [self.pose(p, f"body_ref_config[{i}]") for i, p in enumerate(poses_in)]
-        inertias = [self.mass_inertia(m, f"mass_inertia[{i}]") for i, m in enumerate(inertias_in)]
         screws = [s for _, s in typed]
         if representation == "spatial":
             screws, poses = spatial_to_body(screws, poses, parents)
         for i in range(n):
             self.keys.add(f"joints[{i}].screw", f"joint_screw_coord[{i}]")
             self.keys.add(f"joints[{i}].origin", f"body_ref_config[{i}]{self.rotation_key(poses_in[i])}")
-            self.keys.add(f"joints[{i}].inertia", f"mass_inertia[{i}]")
-        return [Joint(joint_names[i], typed[i][0], parents[i], poses[i], screws[i], inertias[i], link_names[i])
-                for i in range(n)]
+        return [t for t, _ in typed], screws, poses, parents
 
     def entries(self, key, n) -> list:
         value = self.data[key]
         if not isinstance(value, list):
             raise self.error(key, f"expected a list with one entry per joint, got {describe(value)}")
         if len(value) != n:
-            raise self.error(key, f"expected {n} entries (one per joint in joint_screw_coord), got {len(value)}")
+            raise self.error(key, f"expected {n} entries (one per joint in {self.count_key}), got {len(value)}")
         return value
 
     def names(self, key, n, *, identifiers) -> list[str] | None:
@@ -225,7 +253,7 @@ class _Parser(ValueReader):
         if not isinstance(value, list):
             raise self.error(key, f"expected a list of {n} names, got {describe(value)}")
         if len(value) != n:
-            raise self.error(key, f"expected {n} names (one per joint in joint_screw_coord), got {len(value)}")
+            raise self.error(key, f"expected {n} names (one per joint in {self.count_key}), got {len(value)}")
         for i, v in enumerate(value):
             self.name_value(v, f"{key}[{i}]")
             if identifiers and (not v.isidentifier() or keyword.iskeyword(v)):
