@@ -1,11 +1,13 @@
-"""Single-call latency from Python, Panda (7 DOF, fingers locked), float64: the generated C through
-jaxskid.compile_native (cffi and ctypes backends), a jitted JAX call of jaxskid.lower, and Pinocchio.
+"""Single-call latency from Python, float64: the generated C through jaxskid.compile_native (its capi, cffi
+and ctypes backends), a jitted JAX call of jaxskid.lower, and Pinocchio; on the 3-DOF hopping leg and the 12-DOF
+quadruped of robots/ (Pinocchio models built from the same descriptions) and the Panda (7 DOF, fingers locked,
+Pinocchio's own URDF parser).
 
 Every candidate is timed in the same run, interleaved (round-robin over repetitions), so that a loaded
-machine slows them alike; the figures are medians of per-call means. Ratios are against Pinocchio's
-function for the same quantity (rnea, crba, computeGeneralizedGravity, computeCoriolisMatrix).
+machine slows them alike; the figures are medians of per-call means. Ratios are Pinocchio's time for the same
+quantity (rnea, crba, computeGeneralizedGravity, computeCoriolisMatrix) over the candidate's: > 1 is faster.
 
-    python benchmarks/single_call.py [--repeat 41] [--number 2000]
+    python benchmarks/single_call.py [--repeat 41] [--number 2000] [--robots hopping_leg,quadruped_12dof,panda]
 """
 
 from __future__ import annotations
@@ -13,8 +15,10 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import os
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -24,16 +28,28 @@ jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
 
-ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
-PANDA = ROBOTS / "panda_description/urdf/panda.urdf"
+ERD = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
+ROOT = Path(__file__).resolve().parents[1]
+PANDA = ERD / "panda_description/urdf/panda.urdf"
 FINGERS = ("panda_finger_joint1", "panda_finger_joint2")
+ROBOTS = ("hopping_leg", "quadruped_12dof", "panda")
 QUANTITIES = ("inverse_dynamics", "mass_matrix", "gravity_torques", "coriolis_matrix")
+BACKENDS = ("capi", "cffi", "ctypes")
 
 
-def pinocchio_model():
-    full = pin.buildModelFromUrdf(str(PANDA))
-    model = pin.buildReducedModel(full, [full.getJointId(j) for j in FINGERS], pin.neutral(full))
-    return model, model.createData()
+def robot_and_model(key: str):
+    """The robot and a Pinocchio model of it with its data."""
+    if key == "panda":
+        robot = jaxskid.load(PANDA, lock={j: 0.0 for j in FINGERS})
+        full = pin.buildModelFromUrdf(str(PANDA))
+        model = pin.buildReducedModel(full, [full.getJointId(j) for j in FINGERS], pin.neutral(full))
+    else:
+        robot = jaxskid.load(ROOT / "robots" / f"{key}.yaml")
+        sys.path.insert(0, str(ROOT / "tests"))
+        from pinref import to_pinocchio
+
+        model, _ = to_pinocchio(robot, robot.default_params())
+    return robot, model, model.createData()
 
 
 def timed(candidates: dict, repeat: int, number: int) -> dict[str, float]:
@@ -55,21 +71,30 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=41)
     ap.add_argument("--number", type=int, default=2000)
+    ap.add_argument("--robots", default=",".join(ROBOTS))
     opts = ap.parse_args()
     os.environ.setdefault("JAXSKID_CACHE_DIR", tempfile.mkdtemp(prefix="jaxskid-bench-"))
+    print(f"jaxskid {jaxskid.__version__}, jax {jax.__version__}, pinocchio {pin.__version__}")
+    summary = []
+    for key in opts.robots.split(","):
+        summary += robot_calls(key, opts)
+    print("fastest jaxskid path against Pinocchio (ratio > 1: faster than Pinocchio):")
+    for line in summary:
+        print("  " + line)
 
-    robot = jaxskid.load(PANDA, lock={j: 0.0 for j in FINGERS})
+
+def robot_calls(key: str, opts) -> list[str]:
+    robot, model, data = robot_and_model(key)
+    n = robot.n_dof
     t0 = time.perf_counter()
     eqs = jaxskid.derive(robot, QUANTITIES)
     t1 = time.perf_counter()
-    natives = {b: jaxskid.compile_native(eqs, backend=b) for b in ("cffi", "ctypes")}
+    natives = {b: jaxskid.compile_native(eqs, backend=b) for b in BACKENDS}
     t2 = time.perf_counter()
     dyn = jaxskid.lower(robot, QUANTITIES)
-    model, data = pinocchio_model()
     rng = np.random.default_rng(0)
-    q, qd, qdd = rng.uniform(-1, 1, size=(3, 7))
-    print(f"jaxskid {jaxskid.__version__}, jax {jax.__version__}, pinocchio {pin.__version__}; "
-          f"derive {t1 - t0:.2f} s, compile C (both backends) {t2 - t1:.2f} s")
+    q, qd, qdd = rng.uniform(-1, 1, size=(3, n))
+    print(f"\n{key} ({n} DOF): derive {t1 - t0:.2f} s, compile C ({', '.join(BACKENDS)}) {t2 - t1:.2f} s")
 
     cases = {
         "inverse_dynamics": ((q, qd, qdd), lambda: pin.rnea(model, data, q, qd, qdd), "rnea"),
@@ -86,29 +111,27 @@ def main() -> None:
     header = f"{'quantity':<18} {'path':<37} {'per call':>10} {'vs Pinocchio':>13} {'max |diff|':>11}"
     print(header)
     print("-" * len(header))
+    summary = []
     for name, (state, pin_call, pin_name) in cases.items():
         jitted = getattr(dyn, name)
         jitted(*state).block_until_ready()
-        cffi_fn = getattr(natives["cffi"], name)
-        ctypes_fn = getattr(natives["ctypes"], name)
-        candidates = {
-            "generated C (cffi)": lambda: cffi_fn(*state),
-            "generated C (ctypes)": lambda: ctypes_fn(*state),
-            "jitted JAX": lambda: jitted(*state).block_until_ready(),
-            f"Pinocchio {pin_name}": pin_call,
-        }
+        calls = {f"generated C ({b})": getattr(natives[b], name) for b in BACKENDS}
+        candidates = {path: (lambda f=f: f(*state)) for path, f in calls.items()}
+        candidates["jitted JAX"] = lambda: jitted(*state).block_until_ready()
+        candidates[f"Pinocchio {pin_name}"] = pin_call
         number = opts.number if name != "coriolis_matrix" else max(opts.number // 2, 1)
         times = timed(candidates, opts.repeat, number)
         base = times[f"Pinocchio {pin_name}"]
-        outputs = {
-            "generated C (cffi)": cffi_fn(*state),
-            "generated C (ctypes)": ctypes_fn(*state),
-            "jitted JAX": np.asarray(jitted(*state)),
-        }
+        outputs = {path: f(*state) for path, f in calls.items()}
+        outputs["jitted JAX"] = np.asarray(jitted(*state))
         for path, t in times.items():
             diff = f"{np.abs(outputs[path] - ref[name]).max():.1e}" if path in outputs else ""
-            print(f"{name:<18} {path:<37} {t * 1e6:>8.2f} us {t / base:>12.2f}x {diff:>11}")
+            print(f"{name:<18} {path:<37} {t * 1e6:>8.2f} us {base / t:>12.2f}x {diff:>11}")
+        best = min(calls, key=times.__getitem__)
+        summary.append(f"{key} ({n} DOF) {name}: {best} {times[best] * 1e6:.2f} us, Pinocchio {pin_name} "
+                       f"{base * 1e6:.2f} us: {base / times[best]:.2f}x")
         print()
+    return summary
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 
 from ._errors import DescriptionWarning, JaxskidError, ModelError, RequestError, ShapeError
 from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
+from .model._drive import Drive
 from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
 from .model._standard import params_from_standard, standard_parameter_names, standard_params
 from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
@@ -49,6 +50,7 @@ __all__ = [
     "derive",
     "load",
     "lower",
+    "Drive",
     "Frame",
     "JaxskidError",
     "DescriptionWarning",

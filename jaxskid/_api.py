@@ -17,30 +17,35 @@ from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
 from .lowering._xla_cache import default_compilation_cache
 from .lowering._ffi import ffi_library
+from .lowering._extension import Method
 from .lowering._native import build, default_backend
 from .model._robot import Robot
 from .runtime._dynamics import Dynamics
 from .runtime._native import NativeDynamics
 
 
-def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, **options) -> Robot:
+def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, drives: bool = False,
+         **options) -> Robot:
     """Read a robot from ``.urdf``, ``.yaml``/``.yml`` or ``.json`` (chosen by the file extension).
 
-    ``lock`` fixes the named joints at the given positions. Further keyword options go to the reader
-    (for URDF: ``symbolic_inertia``, ``gravity``, ``end_effectors``).
+    ``lock`` fixes the named joints at the given positions. ``drives`` gives every moving joint ``J`` a
+    drive (:class:`jaxskid.Drive`) with the parameters ``J_Ia`` (armature), ``J_fv`` (viscous friction),
+    ``J_fc`` (Coulomb friction) and ``J_fo`` (torque offset), default 0 (for URDF, ``J_fv`` and ``J_fc``
+    default to the joint's ``<dynamics damping friction>``; a YAML ``drives`` entry keeps its values).
+    Further keyword options go to the reader (for URDF: ``symbolic_inertia``, ``gravity``, ``end_effectors``).
     """
     p = Path(path)
     ext = p.suffix.lower()
     if ext == ".urdf":
         from .description._urdf import read_urdf
 
-        return read_urdf(p, lock=lock, **options)
+        return read_urdf(p, lock=lock, drives=drives, **options)
     if ext in (".yaml", ".yml", ".json"):
         from .description._yaml_schema import read_description
 
         if options:
             raise ModelError(f"unknown option(s) {', '.join(options)} for a {ext} file", source=str(p))
-        return read_description(p, lock=lock)
+        return read_description(p, lock=lock, drives=drives)
     raise ModelError(f"unknown file type {ext or '(none)'!r}; expected .urdf, .yaml, .yml or .json", source=str(p))
 
 
@@ -134,7 +139,8 @@ def compile_native(
         model: a :class:`Robot` (its quantities are derived here) or already derived :class:`Equations`.
         quantities: names from :data:`jaxskid.QUANTITIES`; ``None`` for the defaults (for ``Equations``:
             every quantity they hold).
-        backend: ``"cffi"`` or ``"ctypes"``; ``None`` picks cffi when it is installed.
+        backend: ``"capi"`` (an extension module of the quantities: the fastest), ``"cffi"`` or ``"ctypes"``;
+            ``None`` picks capi where Python's headers are installed, else cffi, else ctypes.
         cache_dir: where built libraries are kept (default ``jaxskid.cache_dir() / "native"``).
 
     Raises:
@@ -151,9 +157,23 @@ def compile_native(
     symbols = {n: f"{layout.stem}_{n}" for n in names}
     arity = {symbols[k.name]: len(k.args) + 2 for k in layout.kernels}  # the state arguments, p and out
     root = Path(cache_dir) if cache_dir is not None else default_cache_dir() / "native"
-    library = build(layout.stem, header, source, arity, backend or default_backend(), root)
-    return NativeDynamics(layout.metadata(), {n: library.functions[c] for n, c in symbols.items()},
-                          ffi=library.ffi, path=library.path, source=source, catalogue=tuple(QUANTITIES))
+    backend = backend or default_backend()
+    metadata = layout.metadata()
+    methods = ()
+    if backend == "capi":
+        methods = tuple(_method(k, symbols[k.name], layout, metadata["quantities"][k.name]) for k in layout.kernels)
+    library = build(layout.stem, header, source, arity, backend, root, methods)
+    return NativeDynamics(metadata, {n: library.functions[c] for n, c in symbols.items()}, ffi=library.ffi,
+                          path=library.path, source=source, catalogue=tuple(QUANTITIES), backend=backend,
+                          module=library.handle)
+
+
+def _method(kernel, c_name: str, layout: Layout, meta: Mapping) -> Method:
+    """The extension method of one quantity for the ``"capi"`` backend of :func:`compile_native`."""
+    shape = tuple(meta["shape"])
+    doc = f"{kernel.name}({', '.join(kernel.args)}, params=None) -> {shape}\n\n{meta['equation']}: {meta['doc']}"
+    return Method(kernel.name, c_name, tuple((a, tuple(layout.arg_shape(a))) for a in kernel.args),
+                  len(layout.parameters), shape, doc)
 
 
 def _derived(eqs: Equations, quantities: Sequence[str] | str | None) -> tuple[str, ...]:

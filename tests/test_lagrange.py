@@ -18,7 +18,7 @@ from test_robots import ROBOTS
 
 LAGRANGE = jaxskid.Options(route="lagrange")
 ROUTED = ["mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics", "kinetic_energy"]
-ALL = [*ROUTED, "potential_energy"]
+ALL = [*ROUTED, "potential_energy", "momentum"]
 
 
 def _pinocchio(name: str, robot: jaxskid.Robot):
@@ -53,7 +53,7 @@ def _check_route(name: str, lowered: bool, states: int = 20):
     rng = np.random.default_rng(3)
     q, qd, qdd = rng.uniform(-2, 2, size=(3, states, robot.n_dof))
     args = {"mass_matrix": (q,), "coriolis_torques": (q, qd), "gravity_torques": (q,),
-            "inverse_dynamics": (q, qd, qdd), "kinetic_energy": (q, qd), "potential_energy": (q,)}
+            "inverse_dynamics": (q, qd, qdd), "kinetic_energy": (q, qd), "potential_energy": (q,), "momentum": (q, qd)}
     values = _values(robot, args, lowered)
     ours, theirs = values["lagrange"], values["screw"]
     for k in range(states):
@@ -67,6 +67,7 @@ def _check_route(name: str, lowered: bool, states: int = 20):
             "potential_energy": pin.computePotentialEnergy(model, data, q[k]),
         }
         ref["mass_matrix"] = np.triu(ref["mass_matrix"]) + np.triu(ref["mass_matrix"], 1).T
+        ref["momentum"] = ref["mass_matrix"] @ qd[k]
         for quantity, value in ref.items():
             assert rel_err(ours[quantity][k], value, floor=1e-3) <= 1e-9, (name, quantity, k)
             assert rel_err(ours[quantity][k], theirs[quantity][k], floor=1e-3) <= 1e-9, (name, quantity, k)

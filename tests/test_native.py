@@ -1,5 +1,5 @@
-"""The native single-call path (jaxskid.compile_native): the generated C, built with cffi or ctypes and
-called from Python, computes what the JAX lowering and Pinocchio compute, takes parameters by the one
+"""The native single-call path (jaxskid.compile_native): the generated C, built as its own extension module
+(capi), with cffi or with ctypes and called from Python, computes what the JAX lowering and Pinocchio compute, takes parameters by the one
 rule (defaults fill in, unknown names are errors), and is built once per machine."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ def case(request, tmp_path_factory):
     return Case(request.param, tmp_path_factory.mktemp(f"native-{request.param}"))
 
 
-@pytest.mark.parametrize("backend", ["cffi", "ctypes"])
+@pytest.mark.parametrize("backend", ["capi", "cffi", "ctypes"])
 def test_native_matches_jax_and_pinocchio(case, backend):
     native = jaxskid.compile_native(case.eqs, backend=backend)
     assert native.backend == backend and native.quantities == tuple(case.names)
@@ -38,7 +38,7 @@ def test_native_matches_jax_and_pinocchio(case, backend):
 def test_native_arguments_and_parameters():
     robot = load("hopping_leg")
     dyn = jaxskid.lower(robot, ["inverse_dynamics", "mass_matrix"])
-    for backend in ("cffi", "ctypes"):
+    for backend in ("capi", "cffi", "ctypes"):
         native = jaxskid.compile_native(robot, ["inverse_dynamics", "mass_matrix"], backend=backend)
         q, qd, qdd = np.array([0.1, -0.7, 1.2]), np.array([0.5, 1.0, -2.0]), np.array([1.0, 0.0, -0.5])
         params = {**robot.default_params(), "m2": 0.4, "L1": 0.3}
@@ -101,3 +101,29 @@ def test_native_build_is_cached(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == [first.path.parent.name]  # no leftover build folders
     q = np.array([0.4, -0.2])
     close(second.gravity_torques(q), first.gravity_torques(q), "cached library")
+
+
+def test_capi_calling_convention():
+    """The extension's methods: params by position or keyword, None for the defaults, clear errors for a wrong
+    number of arguments or an unknown keyword, docstrings and names of their own, a fresh array per call."""
+    robot = load("hopping_leg")
+    native = jaxskid.compile_native(robot, ["inverse_dynamics", "kinetic_energy"], backend="capi")
+    ref = jaxskid.compile_native(robot, ["inverse_dynamics", "kinetic_energy"], backend="ctypes")
+    q, qd, qdd = np.array([0.1, -0.7, 1.2]), np.array([0.5, 1.0, -2.0]), np.array([1.0, 0.0, -0.5])
+    p = native.param_vector({"m2": 0.4})
+    expected = ref.inverse_dynamics(q, qd, qdd, p)
+    for got in (native.inverse_dynamics(q, qd, qdd, p), native.inverse_dynamics(q, qd, qdd, params=p),
+                native.inverse_dynamics(q, qd, qdd, params={"m2": 0.4})):
+        close(got, expected, "params")
+    a, b = native.inverse_dynamics(q, qd, qdd), native.inverse_dynamics(q, qd, qdd)
+    assert a is not b and a.flags.c_contiguous and a.dtype == np.float64
+    energy = native.kinetic_energy(q, qd)
+    assert energy.shape == () and np.isclose(energy, ref.kinetic_energy(q, qd), rtol=1e-14, atol=0)
+    assert native.inverse_dynamics.__name__ == "inverse_dynamics"
+    assert native.inverse_dynamics.__doc__.startswith("inverse_dynamics(q, qd, qdd, params=None) -> (3,)")
+    with pytest.raises(TypeError, match=r"inverse_dynamics\(\) takes 3 state arguments"):
+        native.inverse_dynamics(q, qd)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'parms'"):
+        native.inverse_dynamics(q, qd, qdd, parms=p)
+    with pytest.raises(jaxskid.ShapeError, match=r"inverse_dynamics: qd: expected shape \(3,\), got \(2, 3\)"):
+        native.inverse_dynamics(q, np.zeros((2, 3)), qdd)

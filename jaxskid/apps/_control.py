@@ -120,6 +120,9 @@ def mixed_regressor(dyn: Dynamics, q, qd, v, a, params=None) -> jax.Array:
     combination of five evaluations of the ordinary regressor ``Y(q, qd, qdd)``:
 
         Y(q, 0, a) + (Y(q, qd + v, 0) - Y(q, qd, 0) - Y(q, v, 0) + Y(q, 0, 0)) / 2.
+
+    With drives, their columns (after the 10 per body) are those of ``Y(q, qd, a)``: the model is then
+    ``... + Ia a + fv qd + fc sign(qd) + fo`` (n, 10 n_bodies + 4 n_driven).
     """
     _needs(dyn, ("regressor",), "mixed_regressor")
     p = dyn.param_vector(params, jnp.result_type(q, qd, v, a))
@@ -131,7 +134,11 @@ def _mixed(reg, q, qd, v, a, p):
     vel = jnp.stack([zero, qd + v, qd, v, zero])
     acc = jnp.stack([a, zero, zero, zero, zero])
     ys = jax.vmap(reg, in_axes=(None, 0, 0, None))(q, vel, acc, p)
-    return ys[0] + 0.5 * (ys[1] - ys[2] - ys[3] + ys[4])
+    y = ys[0] + 0.5 * (ys[1] - ys[2] - ys[3] + ys[4])
+    bodies = 10 * q.shape[-1]
+    if y.shape[-1] > bodies:  # drives (Ia, fv, fc, fo): the columns (a, qd, sign(qd), 1) of Y(q, qd, a)
+        y = y.at[..., bodies:].set(reg(q, qd, a, p)[..., bodies:])
+    return y
 
 
 class SlotineLi(Controller):
@@ -154,7 +161,7 @@ class SlotineLi(Controller):
         self.reg = dyn.raw("regressor")
         self.reference = _as_reference(reference)
         self.estimate = jnp.asarray(estimate)
-        width = base.n_base if base is not None else 10 * dyn.n_dof
+        width = base.n_base if base is not None else dyn.signature("regressor")[1][-1]
         if self.estimate.shape != (width,):
             raise ShapeError(f"SlotineLi: estimate: expected shape ({width},), got {self.estimate.shape}")
         self.lam, self.kd, self.gamma = jnp.asarray(lam), jnp.asarray(kd), jnp.asarray(gamma)

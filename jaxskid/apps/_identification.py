@@ -255,16 +255,22 @@ class LogCholesky:
     with the pseudo-inertia ``J = [[Sigma, h], [h^T, m]]``, ``Sigma = tr(I)/2 1 - I``, ``h = m c``
     (Wensing, Kim & Slotine, RA-L 3(1), 2017). ``J`` positive definite is equivalent to positive mass and
     the triangle inequalities of the inertia about the centre of mass.
+
+    ``drives``: the number of driven joints, whose 4 standard parameters ``(Ia, fv, fc, fo)`` each follow the
+    bodies' (``len(robot.driven)``); they pass through unchanged (theta = pi there, not constrained).
     """
 
+    drives: int = 0
+
     def standard(self, theta):
-        """``(..., 10 k)`` log-Cholesky numbers -> ``(..., 10 k)`` standard parameters."""
-        th = theta.reshape((*theta.shape[:-1], -1, 10))
-        return _pseudo_to_standard(_log_cholesky_to_pseudo(th)).reshape(theta.shape)
+        """``(..., 10 k + 4 drives)`` log-Cholesky numbers (then drive parameters) -> standard parameters."""
+        th, rest = _split_drives(theta, self.drives)
+        pi = _pseudo_to_standard(_log_cholesky_to_pseudo(th.reshape((*th.shape[:-1], -1, 10))))
+        return jnp.concatenate([pi.reshape(th.shape), rest], axis=-1)
 
     def init(self, pi):
         """Standard parameters (physically consistent, ``J`` positive definite) -> log-Cholesky numbers."""
-        pi = jnp.asarray(pi)
+        pi, rest = _split_drives(jnp.asarray(pi), self.drives)
         j = _standard_to_pseudo(pi.reshape((*pi.shape[:-1], -1, 10)))
         # U upper triangular with J = U U^T: reverse the order, take the lower Cholesky factor, reverse back.
         u = jnp.flip(jnp.linalg.cholesky(jnp.flip(j, (-2, -1))), (-2, -1))
@@ -273,7 +279,15 @@ class LogCholesky:
         th = jnp.stack(
             [alpha, jnp.log(v[..., 0, 0]), jnp.log(v[..., 1, 1]), jnp.log(v[..., 2, 2]),
              v[..., 0, 1], v[..., 1, 2], v[..., 0, 2], v[..., 0, 3], v[..., 1, 3], v[..., 2, 3]], axis=-1)
-        return th.reshape(pi.shape)
+        return jnp.concatenate([th.reshape(pi.shape), rest], axis=-1)
+
+
+def _split_drives(x, drives: int):
+    """``(x[..., :10 k], x[..., 10 k:])``: the bodies' standard parameters and the ``4 drives`` after them."""
+    cut = x.shape[-1] - 4 * drives
+    if cut < 0 or cut % 10:
+        raise ShapeError(f"expected 10 entries per body and then 4 per drive ({drives} drives), got {x.shape[-1]}")
+    return x[..., :cut], x[..., cut:]
 
 
 def _log_cholesky_to_pseudo(th):
@@ -313,10 +327,11 @@ def _standard_to_pseudo(pi):
     return jnp.concatenate([top, bottom], axis=-2)
 
 
-def physically_consistent(pi, tol: float = 0.0) -> np.ndarray:
-    """Per body, whether the pseudo-inertia of the standard parameters ``pi (..., 10 k)`` is positive
-    definite (smallest eigenvalue ``> tol``): shape ``(..., k)``."""
-    pi = jnp.asarray(pi)
+def physically_consistent(pi, tol: float = 0.0, drives: int = 0) -> np.ndarray:
+    """Per body, whether the pseudo-inertia of the standard parameters ``pi (..., 10 k + 4 drives)`` is
+    positive definite (smallest eigenvalue ``> tol``): shape ``(..., k)``. ``drives``: the number of driven
+    joints (``len(robot.driven)``) whose parameters end ``pi``; they are not checked here."""
+    pi, _ = _split_drives(jnp.asarray(pi), drives)
     j = _standard_to_pseudo(pi.reshape((*pi.shape[:-1], -1, 10)))
     return np.asarray(jnp.linalg.eigvalsh(j)[..., 0] > tol)
 

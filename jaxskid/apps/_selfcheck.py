@@ -2,7 +2,9 @@
 
 Each check compares two computations that share no derivation step, on random states:
 
-* ``tau = M qdd + C qd + Q_grav``: recursive Newton-Euler against CRBA, Christoffel C and gravity;
+* ``tau = M qdd + C qd + Q_grav``: recursive Newton-Euler against CRBA, Christoffel C and gravity (with
+  drives, whose friction is unknown here, on the part of tau even in qd: ``(tau(qd) + tau(-qd)) / 2 -
+  tau(0, 0) + Q_grav``, since ``fv qd + fc sign(qd)`` is odd and ``fo`` cancels with ``tau(0, 0)``);
 * ``C(q, qd) qd`` from the Coriolis matrix against the Newton-Euler Coriolis forces;
 * ``dM/dt - 2C`` is skew-symmetric, with ``dM/dt`` from ``jax.jvp`` of the mass matrix;
 * M is symmetric positive definite;
@@ -57,7 +59,10 @@ def self_check(dyn: Dynamics, params=None, *, n_states: int = 16, seed: int = 0)
         c = dyn.coriolis_matrix(q, qd, params)
         g = dyn.gravity_torques(q, params)
         rhs = jnp.einsum("bij,bj->bi", m, qdd) + jnp.einsum("bij,bj->bi", c, qd) + g
-        out.append(Check("RNEA tau = M qdd + C qd + Q_grav", _rel(tau, rhs), tol))
+        if dyn.driven:
+            rest = dyn.inverse_dynamics(q, 0 * qd, 0 * qdd, params)
+            tau = (tau + dyn.inverse_dynamics(q, -qd, qdd, params)) / 2 - rest + g
+        out.append(Check("RNEA tau = M qdd + C qd + Q_grav" + (" (even in qd)" if dyn.driven else ""), _rel(tau, rhs), tol))
     if {"coriolis_matrix", "coriolis_torques"} <= have:
         c = dyn.coriolis_matrix(q, qd, params)
         out.append(Check("C(q, qd) qd = Coriolis forces", _rel(jnp.einsum("bij,bj->bi", c, qd), dyn.coriolis_torques(q, qd, params)), tol))

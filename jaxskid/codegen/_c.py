@@ -24,6 +24,13 @@ from ._common import Kernel, Layout, NumberTweaks, comment, double, shape_str, s
 class CPrinter(NumberTweaks, C99CodePrinter):
     """C99 expressions with jaxskid's number and power conventions."""
 
+    def _print_sign(self, expr):
+        """``copysign((double)(x != 0), x)``, a double. SymPy's ``(x > 0) - (x < 0)`` is an int, and in the
+        vector kernels of :mod:`jaxskid.lowering._ffi` (GCC vector extensions) a comparison is a mask of
+        -1s, read back as the bits of a double; a call keeps such a body on the scalar path."""
+        x = self._print(expr.args[0])
+        return f"copysign((double)(({x}) != 0), {x})"
+
 
 class CxxPrinter(NumberTweaks, CXX11CodePrinter):
     """C++ expressions (``std::sin``, ...) with jaxskid's number and power conventions."""

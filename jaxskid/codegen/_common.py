@@ -137,10 +137,12 @@ class Layout:
     def metadata(self) -> dict:
         """What the runtime needs to call the generated functions, as plain JSON data: ``robot``,
         ``joint_names``, ``frame_names``, ``end_effectors``, ``parameters`` (the order of ``p``),
-        ``defaults`` (name -> value, for the parameters that have one) and ``quantities`` (name ->
-        ``args``, ``shape``, ``equation``, ``doc``)."""
+        ``defaults`` (name -> value, for the parameters that have one), ``quantities`` (name ->
+        ``args``, ``shape``, ``equation``, ``doc``) and, only for a robot with drives, ``driven`` (the names of
+        the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav)."""
         r = self.robot
         quantities = {n: self.eqs.quantities[n] for n in self.names}
+        driven = {"driven": [r.joint_names[i] for i in r.driven]} if r.driven else {}
         return {
             "robot": r.name,
             "joint_names": list(r.joint_names),
@@ -150,6 +152,7 @@ class Layout:
             "defaults": r.default_params(),
             "quantities": {n: {"args": list(q.args), "shape": list(q.shape), "equation": q.equation, "doc": q.doc}
                            for n, q in quantities.items()},
+            **driven,
         }
 
     def header(self, target: str, calling: Sequence[str], *, base: int = 0) -> list[str]:

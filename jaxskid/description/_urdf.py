@@ -17,6 +17,8 @@ Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/par
   ``symbolic_inertia`` the 10 parameters describe the merged body;
 * the default end-effectors are the leaf links, except those welded to the world;
 * a link without ``<inertial>`` is massless;
+* with ``drives``, every moving joint gets a drive whose viscous and Coulomb friction default to its
+  ``<dynamics damping friction>`` (which Pinocchio stores but no algorithm of it uses);
 * a ``<mimic>`` joint is read as an independent joint, as Pinocchio does by default (``mimic=False``);
   a warning is logged, and locking it removes it.
 """
@@ -37,6 +39,7 @@ import sympy as sp
 from .._errors import ModelError
 from ..model import _lie as lie
 from ..model._fixed import lock_joint, merge_fixed
+from ..model._drive import Drive, drive_parameter_names
 from ..model._robot import Joint, Robot, symbol
 from ..model._validate import check_mass, check_positive_semidefinite
 from ._keymap import KeyMap
@@ -55,6 +58,7 @@ def read_urdf(
     symbolic_inertia: bool = True,
     gravity: Sequence = (0, 0, -9.81),
     end_effectors: Sequence[str] | None = None,
+    drives: bool = False,
 ) -> Robot:
     """Build a :class:`Robot` from the URDF file ``path``.
 
@@ -69,6 +73,9 @@ def read_urdf(
         gravity: gravitational acceleration in the world (root link) frame.
         end_effectors: link names marked as end-effectors; default: the leaf links of the tree, except
             those welded to the world (their Jacobian is zero).
+        drives: if True, every moving joint ``J`` gets a drive (:class:`~jaxskid.model._drive.Drive`) with
+            the parameters ``J_Ia, J_fv, J_fc, J_fo``, defaults ``0, damping, friction, 0`` from the joint's
+            ``<dynamics>`` (0 without it).
 
     Returns:
         the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints not locked.
@@ -80,12 +87,12 @@ def read_urdf(
     """
     source = os.fspath(path)
     try:
-        return _read(source, lock, symbolic_inertia, gravity, end_effectors)
+        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives)
     except ModelError as err:
         raise err.located(source=source) from None
 
 
-def _read(source, lock, symbolic_inertia, gravity, end_effectors) -> Robot:
+def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives) -> Robot:
     data = _read_bytes(source)
     _check_document(_parse_xml(data))
     urdf = _load_yourdfpy(data).robot
@@ -97,6 +104,9 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors) -> Robot:
     # symbolic_inertia the 10 parameters of each moving body describe the merged body.
     joints, frames = merge_fixed(_joints(source, order, links, locked), [])
     joints, defaults = _inertial_parameters(joints, symbolic_inertia)
+    if drives:
+        joints, more = _drives(joints, {j.name: j for j in order})
+        defaults.update(more)
     if requested is None:
         requested = _default_end_effectors(order, frames)
     keys = KeyMap({"end_effectors": "end_effectors", "gravity": "gravity"})
@@ -104,6 +114,7 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors) -> Robot:
         for part, key in (("origin", "origin"), ("screw", "axis"), ("name", "name"), ("link", "child")):
             keys.add(f"joints[{k}].{part}", f"joint[name={j.name}].{key}")
         keys.add(f"joints[{k}].inertia", f"link[name={j.link}].inertial")
+        keys.add(f"joints[{k}].drive", f"joint[name={j.name}].dynamics")
     for k, f in enumerate(frames):
         keys.add(f"frames[{k}]", f"link[name={f.name}]")
     try:
@@ -143,6 +154,23 @@ def _inertial_parameters(joints: list[Joint], symbolic: bool) -> tuple[list[Join
         names = _parameter_names(j.link, owner)
         defaults.update({n: float(v) for n, v in zip(names, lie.standard_parameters(j.inertia))})
         out.append(replace(j, inertia=lie.inertia_from_parameters(*(symbol(n) for n in names))))
+    return out, defaults
+
+
+def _drives(joints: list[Joint], urdf_joints: Mapping) -> tuple[list[Joint], dict[str, float]]:
+    """Every joint with :meth:`Drive.symbolic`, and the defaults of its parameters (``<dynamics>``'s
+    ``damping`` and ``friction`` for ``J_fv`` and ``J_fc``)."""
+    out, defaults, owner = [], {}, {}
+    for j in joints:
+        names = drive_parameter_names(j.name)
+        if names[0] in owner:
+            raise ModelError(f"expected joint names that stay distinct as identifiers, got {owner[names[0]]!r} and "
+                             f"{j.name!r} (both give parameters {', '.join(names)})", where=f"joint[name={j.name}].name")
+        owner[names[0]] = j.name
+        dynamics = urdf_joints[j.name].dynamics
+        damping, friction = (0.0, 0.0) if dynamics is None else (dynamics.damping or 0.0, dynamics.friction or 0.0)
+        defaults.update(zip(names, (0.0, float(damping), float(friction), 0.0)))
+        out.append(replace(j, drive=Drive.symbolic(j.name)))
     return out, defaults
 
 

@@ -41,7 +41,12 @@ jaxskid keys
     end-effectors first), ``lock`` (joint name -> position, see :meth:`Robot.lock`), ``dh`` (a
     Denavit–Hartenberg table in place of ``joint_screw_coord``, ``body_ref_config`` and ``representation``:
     ``{convention: standard | modified, base: <pose>, joints: [{type, a, alpha, d, theta}, ...]}``, body i's
-    frame is DH frame i; :mod:`._dh`).
+    frame is DH frame i; :mod:`._dh`), ``drives`` (per joint, ``null`` or its drive
+    ``{armature, viscous, coulomb, offset}``, ``Ia qdd + fv qd + fc sign(qd) + fo`` added to its force; a key
+    left out is 0, and ``gear_ratio`` with ``rotor_inertia`` may replace ``armature = gear_ratio^2
+    rotor_inertia``; values are numbers or expressions of parameters; :mod:`._yaml_drives`). A joint with a
+    drive here is driven without ``jaxskid.load(..., drives=True)``, which gives the others the parameters
+    ``{joint}_Ia, {joint}_fv, {joint}_fc, {joint}_fo`` (default 0).
 
 Gravity. Skidy builds the base acceleration as ``Vd_0 = (0, -gravity_vector)`` and adds
 ``Q_grav = J^T Mb U Vd_0`` to ``M q2d + C qd`` (``src/skidy/kinematics_generator.py``), and its templates and
@@ -73,6 +78,7 @@ from ..model._validate import check_parents, describe
 from ._dh import dh_size, joint_variables, read_dh
 from ._keymap import KeyMap
 from ._wrenches import DescriptionExtras, end_effector_wrenches
+from ._yaml_drives import check_unlocked, read_drives
 from ._yaml_file import load_mapping
 from ._yaml_values import ValueReader
 
@@ -81,30 +87,36 @@ _SKIDY_KEYS = (
     "support", "child", "gravity", "gravity_vector", "q", "qd", "q2d", "q3d", "q4d", "WEE", "WDEE", "W2DEE",
     "assignments",
 )
-_JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock", "dh")
+_JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock", "dh",
+                 "drives")
 _GEOMETRY_KEYS = ("joint_screw_coord", "body_ref_config", "representation")  # what a dh block replaces
 _DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
 _WRENCHES = ("WEE", "WDEE", "W2DEE")
 
 
 # ---------------------------------------------------------------------------------------------- entry points
-def read_description(path, *, lock: Mapping[str, float] | None = None) -> Robot:
+def read_description(path, *, lock: Mapping[str, float] | None = None, drives: bool = False) -> Robot:
     """The robot described by a ``.yaml``, ``.yml`` or ``.json`` file in Skidy's schema.
 
-    ``lock`` (joint name -> position) is merged over the file's own ``lock`` key. Every problem with the
-    file raises :class:`ModelError` naming the file, the key path and what was expected.
+    ``lock`` (joint name -> position) is merged over the file's own ``lock`` key. ``drives`` gives every
+    moving joint without a ``drives`` entry the drive parameters ``J_Ia, J_fv, J_fc, J_fo`` (default 0,
+    :meth:`Robot.with_drives`). Every problem with the file raises :class:`ModelError` naming the file,
+    the key path and what was expected.
     """
     path = Path(path)
-    return parse_description(load_mapping(path), source=str(path), lock=lock)
+    return parse_description(load_mapping(path), source=str(path), lock=lock, drives=drives)
 
 
-def parse_description(data: Mapping, *, source: str = "<dict>", lock: Mapping[str, float] | None = None) -> Robot:
+def parse_description(data: Mapping, *, source: str = "<dict>", lock: Mapping[str, float] | None = None,
+                      drives: bool = False) -> Robot:
     """The robot described by an already loaded mapping; ``source`` names it in error messages."""
     parsed = _parse(data, source)
     try:
         robot = Robot.create(**parsed.arguments)
         locked = {**parsed.lock, **(lock or {})}
-        return robot.lock(locked) if locked else robot
+        check_unlocked(robot.joints, locked)
+        robot = robot.lock(locked) if locked else robot
+        return robot.with_drives() if drives else robot
     except ModelError as exc:
         raise parsed.keys.relocate(exc).located(source=source) from None
     except (ArithmeticError, np.linalg.LinAlgError) as exc:  # numeric checks on extreme default values
@@ -218,7 +230,8 @@ class _Parser(ValueReader):
         inertias = [self.mass_inertia(m, f"mass_inertia[{i}]") for i, m in enumerate(inertias_in)]
         for i in range(n):
             self.keys.add(f"joints[{i}].inertia", f"mass_inertia[{i}]")
-        return [Joint(joint_names[i], types[i], parents[i], poses[i], screws[i], inertias[i], link_names[i])
+        drives = read_drives(self, self.data.get("drives"), n, self.keys)
+        return [Joint(joint_names[i], types[i], parents[i], poses[i], screws[i], inertias[i], link_names[i], drives[i])
                 for i in range(n)]
 
     def screws_and_poses(self, n) -> tuple[list, list, list, list[int]]:

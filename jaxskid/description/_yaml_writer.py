@@ -84,6 +84,10 @@ def robot_to_dict(robot: Robot, *, rotations: str = "matrix") -> dict:
     out["joint_screw_coord"] = [[_value(e) for e in j.screw] for j in robot.joints]
     out["body_ref_config"] = [_pose(j.origin, rotations) for j in robot.joints]
     out["mass_inertia"] = [_rows(j.inertia) for j in robot.joints]
+    if robot.driven:
+        out["drives"] = [None if j.drive is None else dict(zip(("armature", "viscous", "coulomb", "offset"),
+                                                               map(_value, j.drive.values())))
+                         for j in robot.joints]
     if robot.end_effectors:
         ee = [robot.frame(name) for name in robot.end_effectors]
         out["ee"] = [_pose(f.offset, rotations) for f in ee]

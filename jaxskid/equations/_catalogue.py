@@ -14,6 +14,7 @@ from types import MappingProxyType
 
 from .. import symbolic as sym
 from ..model._robot import Robot
+from ..model._standard import n_standard
 from ..symbolic import Derivation, Terms
 
 
@@ -120,7 +121,7 @@ def _vjp(r: Robot) -> tuple[int, ...]:
 
 
 def _regressor(r: Robot) -> tuple[int, ...]:
-    return (r.n_dof, sym.N_STANDARD * r.n_dof)
+    return (r.n_dof, n_standard(r))
 
 
 # ---------------------------------------------------------------------------------------------- time derivatives
@@ -300,7 +301,7 @@ _CATALOGUE = (
         "reverse sweep of the Newton-Euler program. It differentiates forward dynamics in rollouts.",
     ),
     QuantitySpec(
-        "kinetic_energy", ("q", "qd"), _scalar, lambda d: [sym.kinetic_energy(d)],
+        "kinetic_energy", ("q", "qd"), _scalar, lambda d: [sym.with_rotor_energy(d, sym.kinetic_energy(d))],
         "K(q, qd) = 1/2 sum_i V_i^T M_i V_i = 1/2 qd^T M(q) qd",
         "Kinetic energy of the robot (a scalar).",
         lagrange=lambda d: [sym.lagrange.kinetic_energy(d)],
@@ -310,6 +311,11 @@ _CATALOGUE = (
         "U(q) = -sum_i m_i g^T c_i, dU/dq = Q_grav(q)",
         "Gravitational potential energy of the robot (a scalar), zero with every centre of mass at the world "
         "origin.",
+    ),
+    QuantitySpec(
+        "momentum", ("q", "qd"), _vector, lambda d: sym.with_rotor_momentum(d, sym.momentum(d)),
+        "p(q, qd) = dK/dqd = M(q) qd", "Generalized momentum: the body momenta carried to the joints.",
+        lagrange=sym.lagrange.momenta,
     ),
 )
 

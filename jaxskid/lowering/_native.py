@@ -8,6 +8,9 @@ Backends (one argument, ``backend``):
   around the C (needs the Python headers); arguments pass as ``ffi.from_buffer`` views, with no copy.
 * ``"ctypes"``: a plain shared library (needs only a C compiler), called through ctypes with the
   argument types set once.
+* ``"capi"`` (the default where Python's and NumPy's headers are present): an extension module written for
+  the quantities (:mod:`._extension`), whose methods check NumPy arrays in C and call the generated code
+  with nothing in between; the fastest for single calls.
 
 A built library lives in ``<root>/<key>/``, keyed by a hash of the C source, the backend, the compiler
 and its flags and the Python ABI, so it is built once per machine and reused.
@@ -24,14 +27,15 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from .._errors import JaxskidError, RequestError
+from ._extension import Method, extension_source
 
 CFLAGS = ("-O2", "-g0", "-std=c99", "-fPIC")
-BACKENDS = ("cffi", "ctypes")
+BACKENDS = ("capi", "cffi", "ctypes")
 
 
 class BuildError(JaxskidError):
@@ -50,11 +54,14 @@ class Library:
 
 
 def default_backend() -> str:
-    """``"cffi"`` when cffi is installed, else ``"ctypes"``."""
+    """``"capi"`` where Python's headers are installed, else ``"cffi"`` when cffi is, else ``"ctypes"``."""
+    if (Path(sysconfig.get_paths()["include"]) / "Python.h").exists():
+        return "capi"
     return "cffi" if importlib.util.find_spec("cffi") is not None else "ctypes"
 
 
-def build(name: str, header: str, source: str, functions: Mapping[str, int], backend: str, root: Path) -> Library:
+def build(name: str, header: str, source: str, functions: Mapping[str, int], backend: str, root: Path,
+          methods: Sequence[Method] = ()) -> Library:
     """Compile ``<name>.c`` (``source``, which includes ``<name>.h``, ``header``) with the system compiler.
 
     Args:
@@ -62,8 +69,10 @@ def build(name: str, header: str, source: str, functions: Mapping[str, int], bac
         functions: the C functions to export, name -> number of arguments; each is
             ``void f(const double *, ..., double *out)`` (every argument a pointer to doubles, the last
             one the output).
-        backend: ``"cffi"`` or ``"ctypes"`` (see the module docstring).
+        backend: ``"capi"``, ``"cffi"`` or ``"ctypes"`` (see the module docstring).
         root: the folder of built libraries.
+        methods: for ``"capi"``, the extension's methods (one per function of ``functions``); the library's
+            ``functions`` are then those methods, by C name, and ``handle`` the module.
 
     Raises:
         RequestError: an unknown backend.
@@ -71,6 +80,8 @@ def build(name: str, header: str, source: str, functions: Mapping[str, int], bac
     """
     if backend not in BACKENDS:
         raise RequestError(f"unknown backend {backend!r}; expected one of {', '.join(BACKENDS)}")
+    if backend == "capi":
+        return _build_capi(name, header, source, methods, root)
     builder = _build_cffi if backend == "cffi" else _build_ctypes
     return builder(name, header, source, functions, root)
 
@@ -106,6 +117,22 @@ def _sources(root: Path, name: str, header: str, source: str) -> Path:
     return tmp
 
 
+def _compile(cmd: list[str], tmp: Path) -> None:
+    """Run the compiler; on failure remove the build folder and raise with the compiler's output."""
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise BuildError(f"{' '.join(cmd)} failed: {proc.stderr.strip()[-2000:]}")
+
+
+def _load_extension(modname: str, path: Path):
+    """Import the extension module ``modname`` from ``path``."""
+    spec = importlib.util.spec_from_file_location(modname, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def _install(tmp: Path, built: Path, final: Path) -> None:
     final.parent.mkdir(parents=True, exist_ok=True)
     os.replace(built, final)  # atomic: concurrent builders of the same key each leave a whole file
@@ -119,11 +146,7 @@ def _build_ctypes(name: str, header: str, source: str, functions: Mapping[str, i
     if not final.exists():
         tmp = _sources(root, name, header, source)
         out = tmp / final.name
-        cmd = [*cc.split(), *CFLAGS, "-shared", "-o", str(out), str(tmp / f"{name}.c"), "-lm"]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise BuildError(f"{' '.join(cmd)} failed: {proc.stderr.strip()[-2000:]}")
+        _compile([*cc.split(), *CFLAGS, "-shared", "-o", str(out), str(tmp / f"{name}.c"), "-lm"], tmp)
         _install(tmp, out, final)
     lib = ctypes.CDLL(str(final))
     loaded = {}
@@ -159,9 +182,31 @@ def _build_cffi(name: str, header: str, source: str, functions: Mapping[str, int
                 shutil.rmtree(tmp, ignore_errors=True)
                 raise BuildError(f"building the cffi extension {modname} failed: {exc}") from exc
             _install(tmp, built, final)
-        spec = importlib.util.spec_from_file_location(modname, final)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        _LOADED[modname] = module
+        _LOADED[modname] = _load_extension(modname, final)
     module = _LOADED[modname]
     return Library(final, {f: getattr(module.lib, f) for f in functions}, module.ffi, module)
+
+
+def _build_capi(name: str, header: str, source: str, methods: Sequence[Method], root: Path) -> Library:
+    import numpy
+
+    cc = _compiler()
+    suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    includes = (sysconfig.get_paths()["include"], numpy.get_include())
+    if not (Path(includes[0]) / "Python.h").exists():
+        raise BuildError(f"the capi backend needs Python's headers (no Python.h in {includes[0]}); "
+                         "use backend='cffi' or 'ctypes'")
+    key = _key("capi", cc, suffix, numpy.__version__, " ".join(CFLAGS), *includes, header, source, repr(methods))
+    modname = f"_jaxskid_{name}_{key[:16]}"
+    final = root / key[:24] / f"{modname}{suffix}"
+    if modname not in _LOADED:
+        if not final.exists():
+            tmp = _sources(root, name, header, source)
+            (tmp / "module.c").write_text(extension_source(name, modname, methods))
+            out = tmp / final.name
+            _compile([*cc.split(), *CFLAGS, "-shared", *(f"-I{d}" for d in (*includes, tmp)), "-o", str(out),
+                      str(tmp / "module.c"), str(tmp / f"{name}.c"), "-lm"], tmp)
+            _install(tmp, out, final)
+        _LOADED[modname] = _load_extension(modname, final)
+    module = _LOADED[modname]
+    return Library(final, {m.c_name: getattr(module, m.name) for m in methods}, None, module)

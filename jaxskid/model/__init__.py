@@ -1,6 +1,7 @@
 """The robot model: an immutable tree of joints and bodies with symbolic inertial parameters.
 
-:class:`Robot` (``_robot``) is built from :class:`Joint` s and :class:`Frame` s (``_joint``) and validated in
+:class:`Robot` (``_robot``) is built from :class:`Joint` s and :class:`Frame` s (``_joint``), whose drives are
+:class:`Drive` s (``_drive``), and validated in
 one place (``_validate``); fixed joints are locked and welded by ``_fixed``; ``_lie`` holds the SymPy
 spatial matrices and ``_parameters`` the rule that maps a user's parameters onto a model's.
 
@@ -11,6 +12,7 @@ must not import SymPy by importing this package.
 from importlib import import_module
 
 _EXPORTS = {
+    "Drive": "_drive",
     "Frame": "_joint",
     "Joint": "_joint",
     "JOINT_TYPES": "_robot",

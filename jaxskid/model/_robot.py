@@ -6,7 +6,8 @@ quantity is stored in the **body-fixed representation** (Müller 2018, sec. 2.3)
 * ``Joint.origin`` (``B_i``): the 4x4 pose of body ``i``'s frame in its parent's frame at ``q = 0``;
 * ``Joint.screw`` (``X_i``): the joint's unit screw coordinates ``(omega, v)`` in body ``i``'s frame;
 * the relative pose at ``q`` is ``C_{p,i}(q_i) = B_i exp(X_i q_i)``;
-* ``Joint.inertia``: the 6x6 mass-inertia matrix of body ``i`` in its own frame (see :mod:`jaxskid.model._lie`).
+* ``Joint.inertia``: the 6x6 mass-inertia matrix of body ``i`` in its own frame (see :mod:`jaxskid.model._lie`);
+* ``Joint.drive``: the joint's drive (armature, friction, offset; :mod:`jaxskid.model._drive`), or ``None``.
 
 Descriptions in the spatial representation are converted with :func:`spatial_to_body`. :meth:`Robot.create`
 validates what it is given (:mod:`jaxskid.model._validate`), then merges fixed joints into their parent body
@@ -24,11 +25,12 @@ import sympy as sp
 
 from . import _lie as lie
 from .._errors import ModelError
+from ._drive import Drive, drive_parameter_names
 from ._fixed import lock_joint, merge_fixed
 from ._joint import Frame, Joint
 from ._validate import check_defaults, check_parents, symbol, to_expr, validate
 
-__all__ = ["JOINT_TYPES", "Frame", "Joint", "Robot", "spatial_to_body", "symbol", "to_expr"]
+__all__ = ["JOINT_TYPES", "Drive", "Frame", "Joint", "Robot", "spatial_to_body", "symbol", "to_expr"]
 
 JOINT_TYPES = ("revolute", "prismatic")
 
@@ -149,6 +151,11 @@ class Robot:
             i = self.joints[i].parent
         return tuple(reversed(path))
 
+    @property
+    def driven(self) -> tuple[int, ...]:
+        """Indices (in the order of ``q``) of the joints that have a drive."""
+        return tuple(i for i, j in enumerate(self.joints) if j.drive is not None)
+
     def fingerprint(self) -> str:
         """A stable hash of everything that determines the equations of motion."""
         h = hashlib.sha256()
@@ -157,6 +164,8 @@ class Robot:
             h.update(sp.srepr(j.origin).encode())
             h.update(sp.srepr(tuple(j.screw)).encode())
             h.update(sp.srepr(j.inertia).encode())
+            if j.drive is not None:  # a robot without drives hashes as it did before drives existed
+                h.update(sp.srepr(("drive", *j.drive.values())).encode())
         h.update(sp.srepr(self.gravity).encode())
         for f in self.frames:
             h.update(repr((f.name, f.body)).encode())
@@ -181,6 +190,17 @@ class Robot:
         joints = [lock_joint(j, to_expr(values[j.name], where=f"lock.{j.name}")) if j.name in values else j
                   for j in self.joints]
         return self._recreate(joints=joints)
+
+    def with_drives(self, defaults: Mapping[str, float] | None = None) -> "Robot":
+        """A new robot in which every joint without a drive gets :meth:`Drive.symbolic`: the parameters
+        ``{joint}_Ia, {joint}_fv, {joint}_fc, {joint}_fo``, with ``defaults`` (name -> value) or 0."""
+        joints, values = [], dict(self.defaults)
+        for j in self.joints:
+            if j.drive is None:
+                values.update({k: 0.0 for k in drive_parameter_names(j.name) if k not in values})
+                j = replace(j, drive=Drive.symbolic(j.name))
+            joints.append(j)
+        return self._recreate(joints=joints, defaults={**values, **(defaults or {})})
 
     def renamed(self, name: str) -> "Robot":
         """The same robot under another name (generated code and files are named after it)."""
@@ -225,13 +245,13 @@ class Robot:
         return self.substitute(fixed) if fixed else self
 
     def map_expressions(self, fn: Callable[[sp.Expr], sp.Expr], *, defaults: Mapping | None = None) -> "Robot":
-        """A new robot with ``fn`` applied to every expression (poses, screws, inertias, frame offsets and
-        gravity) and, if given, new ``defaults``."""
+        """A new robot with ``fn`` applied to every expression (poses, screws, inertias, drives, frame
+        offsets and gravity) and, if given, new ``defaults``."""
         def matrix(m):
             return sp.ImmutableMatrix(m.applyfunc(fn))
 
         joints = [replace(j, origin=matrix(j.origin), screw=tuple(fn(sp.sympify(x)) for x in j.screw),
-                          inertia=matrix(j.inertia)) for j in self.joints]
+                          inertia=matrix(j.inertia), drive=None if j.drive is None else j.drive.mapped(fn)) for j in self.joints]
         frames = [replace(f, offset=matrix(f.offset)) for f in self.frames]
         return self._recreate(joints=joints, frames=frames, gravity=tuple(fn(g) for g in self.gravity),
                               defaults=dict(self.defaults) if defaults is None else dict(defaults))
@@ -241,6 +261,7 @@ class Robot:
             yield from j.origin
             yield from j.screw
             yield from j.inertia
+            yield from j.drive.values() if j.drive is not None else ()
         yield from self.gravity
         for f in self.frames:
             yield from f.offset
@@ -267,7 +288,12 @@ def _normalize_joint(j: Joint, i: int) -> Joint:
     if len(screw) != 6:
         raise ModelError(f"expected 6 screw coordinates, got {len(screw)}", where=f"{where}.screw")
     screw = tuple(to_expr(x, where=f"{where}.screw[{k}]") for k, x in enumerate(screw))
-    return Joint(str(j.name), j.type, j.parent, origin, screw, inertia, str(j.link))
+    drive = j.drive
+    if drive is not None:
+        if not isinstance(drive, Drive):
+            raise ModelError(f"expected a Drive or None, got {type(drive).__name__}", where=f"{where}.drive")
+        drive = drive.normalized(f"{where}.drive")
+    return Joint(str(j.name), j.type, j.parent, origin, screw, inertia, str(j.link), drive)
 
 
 def _normalize_frame(f: Frame, k: int) -> Frame:

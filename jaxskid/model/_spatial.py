@@ -3,8 +3,9 @@
 A 3-vector or 6-vector is a sequence of scalars, a matrix a sequence of rows. A scalar is anything with
 ``+``, ``-`` and ``*``: a SymPy expression (the symbolic stage, which names results on its tape through
 the ``name`` hooks below) or a JAX scalar (the numeric recursive evaluation in :mod:`jaxskid.testing`).
-Nothing here imports SymPy or JAX, and nothing tests a scalar's value, so the same code traces in JAX.
-Sums fold left from their first term, so SymPy sees the same expressions as from ``a + b + c``.
+Nothing here imports JAX, and nothing tests a scalar's value, so the same code traces in JAX. A sum with a
+SymPy term is built as one n-ary ``Add`` (the same expression as ``a + b + c``, without flattening the growing
+sum again at each ``+``: that is quadratic in the number of terms); other sums fold left from their first term.
 
 Conventions, as in :mod:`jaxskid.model._lie` (Müller 2018, "Screw and Lie group theory in multibody
 kinematics"; Featherstone, "Rigid Body Dynamics Algorithms", 2008, ch. 2):
@@ -39,6 +40,11 @@ def unnamed(v: Sequence) -> Vec:
 
 
 def _sum(terms) -> object:
+    terms = list(terms)
+    if any(getattr(t, "__sympy__", False) for t in terms):
+        from sympy import Add
+
+        return Add(*terms)
     return reduce(operator.add, terms)
 
 

@@ -1,9 +1,11 @@
-"""The standard inertial parameters: 10 per body, the parameters the regressor is linear in.
+"""The standard parameters: 10 per body, then 4 per driven joint, the parameters the regressor is linear in.
 
 Per body, in the order of ``q``: ``pi_i = (m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``,
 the inertia about the body frame's origin in its axes (Atkeson, An & Hollerbach, IJRR 5(3), 1986;
 Pinocchio's ``Inertia.toDynamicParameters`` order, :data:`jaxskid.model._lie.STANDARD_PARAMETER_NAMES`).
 They are named ``{link}_{p}``, the convention of the robot's own parameters (``upper_arm_link_m``).
+A robot with drives (:mod:`jaxskid.model._drive`) has 4 more per driven joint, in the order of ``q``:
+``(Ia, fv, fc, fo)``, named ``{joint}_{p}`` (:func:`~jaxskid.model._drive.drive_parameter_names`).
 A robot's own parameters are read through :class:`~jaxskid.model._parameters.ParameterLayout`: a partial
 dict takes the defaults for the rest, and an unknown name is an error that names the closest valid ones.
 """
@@ -17,20 +19,30 @@ import sympy as sp
 
 from .._errors import ModelError, ShapeError
 from . import _lie as lie
+from ._drive import DRIVE_PARAMETER_NAMES, drive_parameter_names
 from ._parameters import ParameterLayout
 from ._robot import Robot, symbol
 
 N_STANDARD = len(lie.STANDARD_PARAMETER_NAMES)  # 10 parameters per body
 
 
+def n_standard(robot: Robot) -> int:
+    """The number of standard parameters: ``10 n_bodies + 4 n_driven``."""
+    return N_STANDARD * robot.n_dof + len(DRIVE_PARAMETER_NAMES) * len(robot.driven)
+
+
 def standard_parameter_names(robot: Robot) -> tuple[str, ...]:
-    """``{link}_{m, mcx, ..., Izz}`` for every body, in the order of :func:`standard_params`."""
-    return tuple(f"{link}_{p}" for link in robot.link_names for p in lie.STANDARD_PARAMETER_NAMES)
+    """``{link}_{m, mcx, ..., Izz}`` for every body, then ``{joint}_{Ia, fv, fc, fo}`` for every driven
+    joint, in the order of :func:`standard_params`."""
+    bodies = tuple(f"{link}_{p}" for link in robot.link_names for p in lie.STANDARD_PARAMETER_NAMES)
+    return bodies + tuple(n for i in robot.driven for n in drive_parameter_names(robot.joint_names[i]))
 
 
 def standard_parameter_expressions(robot: Robot) -> list[sp.Expr]:
-    """The 10 n_bodies standard parameters as expressions of the robot's own parameter symbols."""
-    return [e for j in robot.joints for e in lie.standard_parameters(j.inertia)]
+    """The standard parameters (10 per body, 4 per driven joint) as expressions of the robot's own
+    parameter symbols."""
+    bodies = [e for j in robot.joints for e in lie.standard_parameters(j.inertia)]
+    return bodies + [sp.sympify(e) for i in robot.driven for e in robot.joints[i].drive.values()]
 
 
 def _layout(robot: Robot) -> ParameterLayout:
@@ -50,12 +62,13 @@ def _values(robot: Robot, params, where: str) -> dict[str, float]:
 
 
 def standard_params(robot: Robot, params: Mapping[str, float] | Sequence[float] | None = None) -> np.ndarray:
-    """The standard inertial parameters ``pi`` (10 per body) of ``robot`` at these parameter values.
+    """The standard parameters ``pi`` (10 per body, 4 per driven joint) of ``robot`` at these parameter values.
 
     ``pi`` is what the regressor multiplies: ``dyn.regressor(q, qd, qdd, params) @ pi`` equals
     ``dyn.inverse_dynamics(q, qd, qdd, params)``. Per body, in the order of ``q``:
     ``(m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``, the inertia about the body frame's
-    origin in its axes (Pinocchio's ``Inertia.toDynamicParameters``).
+    origin in its axes (Pinocchio's ``Inertia.toDynamicParameters``); then per driven joint, in the order of
+    ``q``: ``(Ia, fv, fc, fo)``.
 
     Args:
         robot: the model.
@@ -63,14 +76,14 @@ def standard_params(robot: Robot, params: Mapping[str, float] | Sequence[float] 
             vector in the order of ``robot.parameters``.
 
     Returns:
-        a float64 array of shape ``(10 * robot.n_dof,)``.
+        a float64 array of shape ``(10 * robot.n_dof + 4 * len(robot.driven),)``.
     """
     sub = {symbol(k): sp.Float(v) for k, v in _values(robot, params, "standard_params: params").items()}
     return np.array([float(sp.sympify(e).xreplace(sub)) for e in standard_parameter_expressions(robot)])
 
 
 def _kinematic_symbols(robot: Robot) -> set:
-    """The symbols in poses, screws, gravity and frame offsets: everything but the inertias."""
+    """The symbols in poses, screws, gravity and frame offsets: everything but the inertias and drives."""
     out: set = set()
     for j in robot.joints:
         out |= j.origin.free_symbols | set().union(*(sp.sympify(x).free_symbols for x in j.screw))
@@ -88,11 +101,9 @@ def _affine_system(robot: Robot, exprs: list, unknowns: list) -> tuple[np.ndarra
     for r, e in enumerate(exprs):
         poly = sp.Poly(e, *unknowns) if unknowns else None
         if poly is not None and poly.total_degree() > 1:
-            raise ModelError(
-                f"the inertia of body {robot.link_names[r // N_STANDARD]!r} is not affine in its parameters "
-                f"({lie.STANDARD_PARAMETER_NAMES[r % N_STANDARD]} = {e}); cannot invert",
-                where="params_from_standard",
-            )
+            name = standard_parameter_names(robot)[r]
+            raise ModelError(f"the standard parameter {name} = {e} is not affine in the robot's parameters; "
+                             "cannot invert", where="params_from_standard")
         for c, s in enumerate(unknowns):
             a[r, c] = float(e.coeff(s)) if poly is not None else 0.0
         b[r] = float(e.subs({s: 0 for s in unknowns}))
@@ -105,16 +116,16 @@ def params_from_standard(
     """The robot's own inertial parameters that reproduce the standard parameters ``pi``.
 
     The inverse of :func:`standard_params` where it exists: the parameters that appear only in the
-    inertias (not in poses, screws or gravity) are solved for, by least squares, provided the inertias
-    are affine in them (as for URDF robots read with ``symbolic_inertia``, where the map is the identity
+    inertias and drives (not in poses, screws or gravity) are solved for, by least squares, provided the
+    inertias and drives are affine in them (as for URDF robots read with ``symbolic_inertia``, where the map is the identity
     up to names); the other parameters keep the values in ``params`` (missing ones take their defaults).
 
     Raises:
         ModelError: if the inertias are not affine in those parameters or ``pi`` cannot be reproduced.
     """
     pi = np.asarray(pi, dtype=float)
-    if pi.shape != (N_STANDARD * robot.n_dof,):
-        raise ShapeError(f"pi: expected shape ({N_STANDARD * robot.n_dof},), got {pi.shape}")
+    if pi.shape != (n_standard(robot),):
+        raise ShapeError(f"pi: expected shape ({n_standard(robot)},), got {pi.shape}")
     where = "params_from_standard: params"
     layout = _layout(robot)
     layout.check_names(params or {}, where)

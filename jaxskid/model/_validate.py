@@ -16,6 +16,7 @@ The rules and their tolerances:
 * a mass-inertia matrix is symmetric, of the form ``[[I_o, m c~], [-m c~, m 1]]`` (within
   :data:`SYMMETRY_TOL`, relative), with ``m >= 0`` and a positive semi-definite rotational inertia about
   the centre of mass (eigenvalues above ``-EIGEN_TOL`` times the inertia's scale);
+* a drive belongs to a moving joint, and its armature, viscous and Coulomb friction are not negative;
 * parents come before their children and form no cycle; names are unique.
 
 Checks that need numbers use the parameters' default values; with a parameter that has none, the check
@@ -300,10 +301,22 @@ def validate(joints: Sequence, frames: Sequence, gravity: Sequence, end_effector
         if j.type != "fixed":
             check_screw(j.type, j.screw, values, f"{where}.screw")
         check_mass_inertia(j.inertia, values, f"{where}.inertia")
+        if j.drive is not None:
+            check_drive(j.type, j.drive, values, f"{where}.drive")
     for k, f in enumerate(frames):
         if not -1 <= f.body < len(joints):
             raise ModelError(f"expected a body index in -1..{len(joints) - 1}, got {f.body}", where=f"frames[{k}].body")
         check_pose(f.offset, values, f"frames[{k}].offset")
+
+
+def check_drive(kind: str, drive, values: Mapping, where: str) -> None:
+    """A drive (:class:`~jaxskid.model._drive.Drive`) on a moving joint, with armature and friction ``>= 0``."""
+    if kind == "fixed":
+        raise ModelError("a fixed joint has no drive; remove the drive or make the joint move", where=where)
+    for what in ("armature", "viscous", "coulomb"):
+        x = numeric(getattr(drive, what), values)
+        if x is not None and x < 0:
+            raise ModelError(f"expected a non-negative {what} value, got {x:g}", where=f"{where}.{what}")
 
 
 def _check_names(joints, frames, end_effectors, base) -> None:

@@ -34,6 +34,8 @@ class QuantitySet:
         signatures: quantity name -> (argument names, output shape), for the quantities made.
         catalogue: the names of every quantity jaxskid knows (:data:`jaxskid.QUANTITIES`), for the error
             that names a quantity that exists but was not made.
+        driven: the joints that have a drive (:class:`jaxskid.Drive`): ``tau = M qdd + C qd + Q_grav`` plus
+            their armature, friction and offset.
     """
 
     _made = "made"
@@ -49,8 +51,10 @@ class QuantitySet:
         layout: ParameterLayout,
         signatures: Mapping[str, tuple[Sequence[str], Sequence[int]]],
         catalogue: Collection[str] = (),
+        driven: Sequence[str] = (),
     ):
         self.robot_name: str = robot_name
+        self.driven: tuple[str, ...] = tuple(driven)
         self.joint_names: tuple[str, ...] = tuple(joint_names)
         self.frame_names: tuple[str, ...] = tuple(frame_names)
         self.end_effectors: tuple[str, ...] = tuple(end_effectors)

@@ -79,6 +79,7 @@ class Dynamics(QuantitySet):
             layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
             signatures={k: (m["args"], m["shape"]) for k, m in quantities.items()},
             catalogue=catalogue,
+            driven=meta.get("driven", ()),
         )
         self.source = source
         self.path = path

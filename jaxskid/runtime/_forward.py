@@ -37,10 +37,17 @@ def require_solver(dyn, what: str) -> None:
             f"coriolis_torques and gravity_torques); lowered: {', '.join(dyn.quantities)}. Ask for them with "
             "jaxskid.lower(robot, quantities=[..., 'forward_dynamics'])"
         )
+    if dyn.driven and "inverse_dynamics" not in have:
+        raise RequestError(
+            f"{what} needs forward_dynamics, or mass_matrix and inverse_dynamics: robot {dyn.robot_name!r} has "
+            "drives, whose friction and offset coriolis_torques and gravity_torques leave out; lowered: "
+            f"{', '.join(dyn.quantities)}"
+        )
 
 
 def _bias(dyn, raw: Callable) -> Callable:
-    """``b(q, qd, p) = C(q, qd) qd + Q_grav(q)`` from the lowered quantities."""
+    """``b(q, qd, p) = C(q, qd) qd + Q_grav(q)`` (plus the drives' ``fv qd + fc sign(qd) + fo``) from the
+    lowered quantities."""
     if "inverse_dynamics" in dyn.quantities:
         rnea = raw("inverse_dynamics")
         return lambda q, qd, p: rnea(q, qd, jnp.zeros_like(qd), p)

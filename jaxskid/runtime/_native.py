@@ -75,6 +75,7 @@ def _metadata_fields(meta: Mapping) -> dict:
         robot_name=meta["robot"], joint_names=meta["joint_names"], frame_names=meta["frame_names"],
         end_effectors=meta["end_effectors"], layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
         signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
+        driven=meta.get("driven", ()),
     )
 
 
@@ -92,8 +93,11 @@ class NativeDynamics(QuantitySet):
         metadata: the quantities' metadata, as a generated JAX module's ``METADATA``
             (:meth:`jaxskid.codegen.Layout.metadata`).
         functions: quantity name -> the C function ``f(const double *arg, ..., const double *p, double
-            *out)``: a cffi function when ``ffi`` is given, else a ctypes function taking addresses.
-        ffi: cffi's ``FFI`` of the library, or None for ctypes.
+            *out)``: a cffi function when ``ffi`` is given, else a ctypes function taking addresses; for
+            the ``"capi"`` backend, the extension's method itself.
+        ffi: cffi's ``FFI`` of the library, or None for ctypes and capi.
+        backend: ``"capi"``, ``"cffi"`` or ``"ctypes"`` (default: cffi with ``ffi``, else ctypes).
+        module: the capi extension module, which is given its converters here.
         path: the built library's file; source: its C source.
         catalogue: the names of every quantity jaxskid knows, so that asking for one that was not
             compiled says so.
@@ -103,19 +107,25 @@ class NativeDynamics(QuantitySet):
     _remedy = "jaxskid.compile_native(robot, [..., {name!r}])"
 
     def __init__(self, metadata: Mapping, functions: Mapping[str, Callable], *, ffi=None, path: Path | None = None,
-                 source: str = "", catalogue: Collection[str] = ()):
+                 source: str = "", catalogue: Collection[str] = (), backend: str | None = None, module=None):
         super().__init__(**_metadata_fields(metadata), catalogue=catalogue)
         self._docs = {k: f"{m['equation']}: {m['doc']}" for k, m in metadata["quantities"].items()}
-        self.backend = "ctypes" if ffi is None else "cffi"
+        self.backend = backend or ("ctypes" if ffi is None else "cffi")
         self.path = path
         self.source = source
         self._default_vector = np.array([self.defaults.get(k, np.nan) for k in self.parameters], dtype=np.float64)
         self._default_vector.flags.writeable = False
+        if self.backend == "capi":
+            # the extension's methods are complete: they convert what is not a float64 array through these
+            module.configure(_arr, self.param_vector, self.layout.has_all_defaults)
         for name in self.quantities:
             args, shape = self.signature(name)
-            fn = self._make(name, args, shape, functions[name], ffi)
-            fn.__name__ = name
-            fn.__doc__ = f"{name}({', '.join(args)}, params=None) -> {shape}\n\n{self._docs[name]}"
+            if self.backend == "capi":
+                fn = functions[name]  # a builtin with its own name and docstring
+            else:
+                fn = self._make(name, args, shape, functions[name], ffi)
+                fn.__name__ = name
+                fn.__doc__ = f"{name}({', '.join(args)}, params=None) -> {shape}\n\n{self._docs[name]}"
             if name == "forward_kinematics":
                 fn = self._frames(fn)
             setattr(self, name, fn)

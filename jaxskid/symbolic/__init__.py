@@ -12,6 +12,7 @@ derived together share their work. Each algorithm is a function of the derivatio
 * ``_coriolis``: the Christoffel-consistent Coriolis matrix;
 * ``_time_kinematics`` and ``_time_dynamics``: closed-form time derivatives (Müller & Kumar 2021);
 * ``_regressor``: the inertial-parameter regressor;
+* ``_drives``: the joints' drives (armature, friction, offset) that M, tau, the bias and the regressor add;
 * ``_forward``: forward dynamics by the symbolic sparse ``L^T D L`` of M;
 * ``_adjoint``: differentiation of the tape, reverse mode (the vector-Jacobian product of inverse dynamics)
   and forward mode;
@@ -26,7 +27,8 @@ from ._adjoint import inverse_dynamics_vjp, jvp, vjp
 from ._coriolis import coriolis_matrix
 from ._crba import mass_matrix
 from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
-from ._energy import kinetic_energy, potential_energy
+from ._drives import with_rotor_energy, with_rotor_momentum
+from ._energy import kinetic_energy, momentum, potential_energy
 from ._forward import forward_dynamics
 from ._frames import (
     body_hybrid_acceleration, body_hybrid_twist, frame_hybrid_acceleration, frame_hybrid_twist, frame_motion,
@@ -78,6 +80,7 @@ __all__ = [
     "inverse_dynamics",
     "mass_matrix",
     "mass_matrix_derivative",
+    "momentum",
     "memoized",
     "newton_euler_derivative",
     "regressor",
@@ -85,4 +88,6 @@ __all__ = [
     "system_jacobian_dot",
     "twist",
     "vjp",
+    "with_rotor_energy",
+    "with_rotor_momentum",
 ]

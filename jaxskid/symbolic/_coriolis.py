@@ -23,10 +23,11 @@ from ._rnea import backward
 
 def christoffel_gyro(d: Derivation, m: Sequence[Sequence], v: Sequence, h: Sequence, x: Sequence) -> Vec:
     """``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))`` with ``h = M V``."""
-    t1 = sa.inertia_apply(m, sa.ad_apply(v, x))
-    t2 = sa.coad_apply(v, d.tape.vec(sa.inertia_apply(m, x)))
+    t = d.tape
+    t1 = sa.inertia_apply(m, t.vec(sa.ad_apply(v, x)))
+    t2 = sa.coad_apply(v, t.vec(sa.inertia_apply(m, x)))
     t3 = sa.coad_apply(x, h)
-    return [e / 2 for e in sa.add(t1, t2, t3)]
+    return t.vec([e / 2 for e in sa.add(t1, t2, t3)])
 
 
 def coriolis_wrench(d: Derivation, i: int, k: int) -> Vec:

@@ -4,7 +4,8 @@
 The composite inertia of each subtree is kept in the 10-parameter form ``(m, h, I)`` (mass, first moment
 ``h = m c`` and rotational inertia about the frame origin), which moves to the parent with fewer
 operations than the 6x6 product ``T^T Ic T``; ``M_ij = X_j^T (T^T ... Ic_i X_i)`` for j on the path from
-i to the root, and only the lower triangle is computed.
+i to the root, and only the lower triangle is computed. The drives' armature adds to the diagonal
+(:mod:`._drives`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import sympy as sp
 from ..model import _lie as lie
 from ..model import _spatial as sa
 from ._derivation import Derivation, memoized
+from ._drives import armature
 from ._kinematics import Vec, inertia, relative, screw, to_parent
 
 
@@ -50,12 +52,12 @@ def apply_composite(d: Derivation, i: int, x: Sequence) -> Vec:
 
 
 def mass_matrix(d: Derivation) -> sp.Matrix:
-    """M(q), symmetric, n x n."""
+    """M(q) + diag(Ia), symmetric, n x n (``Ia``: the drives' armature, 0 without drives)."""
     m = sp.zeros(d.n)
-    for i in range(d.n):
+    for i, ia in enumerate(armature(d)):
         x = screw(d, i)
         f = d.tape.vec(apply_composite(d, i, x))
-        m[i, i] = d.tape(sa.dot(x, f))
+        m[i, i] = d.tape(sa.dot(x, f) + ia)
         j = i
         while d.robot.joints[j].parent >= 0:
             f = to_parent(d, j, f)

@@ -4,6 +4,8 @@
   body i in its frame (Featherstone 2008, eq. 2.61); ``K = 1/2 qd^T M(q) qd``.
 * ``U(q) = -sum_i g^T (R_i h_i + m_i p_i)``, with ``h_i = m_i c_i``: zero when every centre of mass is at the
   world origin, so ``dU/dq = Q_grav``.
+* the generalized momentum ``p(q, qd) = dK/dqd = M(q) qd = sum_i J_i^T M_i V_i``: the body momenta ``M_i V_i``
+  carried to the joints by a Newton-Euler backward pass.
 
 The Euler-Lagrange route (:mod:`._lagrange`) forms K its own way, from the pose's time derivative.
 """
@@ -14,7 +16,8 @@ import sympy as sp
 
 from ..model import _spatial as sa
 from ._derivation import Derivation, memoized
-from ._kinematics import absolute, gravity, inertia, twist
+from ._kinematics import Vec, absolute, gravity, inertia, twist
+from ._rnea import backward
 
 
 @memoized
@@ -38,3 +41,10 @@ def potential_energy(d: Derivation) -> sp.Expr:
         r, p = absolute(d, i)
         total.append(t(-sa.dot(g, t.vec(sa.add(sa.matvec(r, h), sa.scale(p, m))))))
     return t(sp.Add(*total))
+
+
+def momentum(d: Derivation) -> Vec:
+    """``p = M(q) qd``, the backward pass of the body momenta ``M_i V_i``."""
+    t = d.tape
+    return backward(d, [t.vec(sa.apply_inertia_parts(sa.inertia_parts(inertia(d, i)), twist(d, i)))
+                        for i in range(d.n)])

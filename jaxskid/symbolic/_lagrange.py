@@ -6,7 +6,7 @@ and Paul ("Robot Manipulators", 1981, ch. 6):
 
 * each body's world pose ``T_i(q)`` (the product of exponentials of :mod:`._kinematics`) and its chain-rule
   time derivative ``dT_i/dt = sum_j dT_i/dq_j qd_j`` (:func:`~._adjoint.jvp` along ``q -> qd``);
-* the kinetic energy in the pseudo-inertia form ``K = 1/2 sum_i tr(dT_i/dt J_i dT_i/dt^T)``, with
+* the kinetic energy in the pseudo-inertia form (plus the rotors' ``1/2 Ia qd^2`` of the joints' drives) ``K = 1/2 sum_i tr(dT_i/dt J_i dT_i/dt^T)``, with
   ``J_i = [[tr(I_i)/2 1 - I_i, h_i], [h_i^T, m_i]]`` (``I_i`` about the body origin, ``h_i = m_i c_i``; the
   second moments of the body's mass, ``sum m r r^T``), and the potential energy ``U`` of :mod:`._energy`;
 * the Euler-Lagrange equations ``d/dt dK/dqd - dK/dq + dU/dq = tau``:
@@ -14,7 +14,7 @@ and Paul ("Robot Manipulators", 1981, ch. 6):
   - ``H = d^2 K / dqd^2`` (the mass matrix),
   - ``d = (d^2 K / dqd dq) qd - dK/dq`` (the Coriolis and centrifugal forces, C qd),
   - ``g = dU/dq`` (the gravity forces),
-  - ``tau = H qdd + d + g``.
+  - ``tau = H qdd + d + g`` (plus the drives' friction and offset, forces that no energy gives).
 
 The derivatives are taken by SymPy on the tape (:func:`~._adjoint.vjp` for the gradients of the scalar
 energies, :func:`~._adjoint.jvp` for the time derivative of the momenta ``dK/dqd``), so the program stays a
@@ -29,6 +29,7 @@ import sympy as sp
 from ..model import _spatial as sa
 from ._adjoint import jvp, vjp
 from ._derivation import Derivation, memoized
+from ._drives import with_drives, with_rotor_energy
 from ._energy import potential_energy
 from ._kinematics import Vec, absolute, inertia
 
@@ -59,7 +60,7 @@ def kinetic_energy(d: Derivation) -> sp.Expr:
         for k in range(3):
             row = rate[4 * k: 4 * k + 4]
             total.append(t(sa.dot(row, t.vec(sa.matvec(j, row)))))
-    return t(sp.Add(*total) / 2)
+    return with_rotor_energy(d, t(sp.Add(*total) / 2))
 
 
 @memoized
@@ -94,7 +95,9 @@ def gravity_torques(d: Derivation) -> Vec:
 
 
 def inverse_dynamics(d: Derivation) -> Vec:
-    """``tau = H qdd + d + g``."""
+    """``tau = H qdd + d + g``, plus the drives' friction and offset (non-conservative forces; the rotors'
+    inertia is in K, hence in H)."""
     h = mass_matrix(d)
     c, g = coriolis_torques(d), gravity_torques(d)
-    return d.tape.vec([sa.dot(h.row(a), d.qdd) + c[a] + g[a] for a in range(d.n)])
+    tau = d.tape.vec([sa.dot(h.row(a), d.qdd) + c[a] + g[a] for a in range(d.n)])
+    return with_drives(d, tau, inertial=False)

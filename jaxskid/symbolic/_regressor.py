@@ -17,6 +17,10 @@ respect to the parameters; it writes the 6x10 block of each body's wrench in clo
   k's body Jacobian, so ``Y[j, 10k:10k+10] = J_{k,j}^T A_k`` for the joints ``j`` that support ``k`` and
   zero otherwise. This equals propagating ``A_k`` to the root with the RNEA's ``T^T`` maps and projecting
   on each screw (``X_j^T T^T...T^T A_k = (T...T X_j)^T A_k``), at a sixth of the operations.
+
+The drives' parameters follow, 4 per driven joint in joint order (:func:`._drives.drive_columns`): the drive
+torque ``Ia qdd + fv qd + fc sign(qd) + fo`` of joint j is linear in ``(Ia, fv, fc, fo)`` with the row-j
+entries ``(qdd_j, qd_j, sign(qd_j), 1)``.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import sympy as sp
 from ..model import _spatial as sa
 from ..model._standard import N_STANDARD
 from ._derivation import Derivation, memoized
+from ._drives import drive_columns
 from ._jacobians import jacobian_columns
 from ._kinematics import Terms, Vec, acceleration, twist
 
@@ -62,11 +67,12 @@ def body_wrench_columns(d: Derivation, i: int) -> list[Vec]:
 
 
 def regressor(d: Derivation) -> list[Vec]:
-    """``Y(q, qd, qdd)``, n x 10 n, with ``tau = Y pi`` (see the module docstring)."""
+    """``Y(q, qd, qdd)``, n x (10 n + 4 n_driven), with ``tau = Y pi`` (see the module docstring)."""
     y = [[sp.Integer(0)] * (N_STANDARD * d.n) for _ in range(d.n)]
     for k in range(d.n):
         cols = body_wrench_columns(d, k)
         for j, jac in jacobian_columns(d, k).items():
             for c, col in enumerate(cols):
                 y[j][N_STANDARD * k + c] = d.tape(sa.dot(jac, col))
-    return y
+    drives = drive_columns(d)
+    return [row + [col[j] for col in drives] for j, row in enumerate(y)]

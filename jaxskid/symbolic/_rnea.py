@@ -2,7 +2,8 @@
 
 Body-fixed (Featherstone, "Rigid Body Dynamics Algorithms", 2008, Alg. 5.1; Müller 2018, sec. 3): after
 the forward pass of :mod:`._kinematics`, body i's own wrench is ``W_i = M_i Vd_i - ad(V_i)^T M_i V_i``; the
-backward pass sums ``F_i = W_i + sum_children T_c^T F_c`` and projects ``tau_i = X_i^T F_i``.
+backward pass sums ``F_i = W_i + sum_children T_c^T F_c`` and projects ``tau_i = X_i^T F_i``. The joints'
+drives (:mod:`._drives`) add to tau and to the bias, not to C qd or Q_grav.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from collections.abc import Mapping, Sequence
 
 from ..model import _spatial as sa
 from ._derivation import Derivation, memoized
+from ._drives import with_drives
 from ._frames import body_loads
 from ._kinematics import Terms, Vec, acceleration, inertia, is_zero, screw, to_parent, twist, zero6
 
@@ -58,8 +60,9 @@ def newton_euler(d: Derivation, terms: Terms, loads: Mapping[int, Vec] | None = 
 
 
 def inverse_dynamics(d: Derivation) -> Vec:
-    """``tau = M(q) qdd + C(q, qd) qd + Q_grav(q)``."""
-    return newton_euler(d, Terms.INVERSE_DYNAMICS)
+    """``tau = M(q) qdd + C(q, qd) qd + Q_grav(q) + tau_drive``, ``tau_drive = Ia qdd + fv qd + fc sign(qd) + fo``
+    (0 without drives)."""
+    return with_drives(d, newton_euler(d, Terms.INVERSE_DYNAMICS))
 
 
 def coriolis_torques(d: Derivation) -> Vec:
@@ -73,8 +76,8 @@ def gravity_torques(d: Derivation) -> Vec:
 
 
 def bias_forces(d: Derivation) -> Vec:
-    """``C(q, qd) qd + Q_grav(q)``."""
-    return newton_euler(d, Terms.BIAS)
+    """``C(q, qd) qd + Q_grav(q) + fv qd + fc sign(qd) + fo`` (the drives' friction and offset, if any)."""
+    return with_drives(d, newton_euler(d, Terms.BIAS), inertial=False)
 
 
 def external_torques(d: Derivation, wrenches: Mapping[str, Sequence]) -> Vec:

@@ -21,6 +21,7 @@ from ..model import _spatial as sa
 from ._coriolis import coriolis_wrench
 from ._crba import apply_composite
 from ._derivation import Derivation, memoized
+from ._drives import with_drives
 from ._frames import body_loads
 from ._jacobians import jacobian_columns
 from ._kinematics import Terms, Vec, inertia, is_zero, screw, zero6
@@ -70,9 +71,11 @@ def body_wrench_derivative(d: Derivation, i: int, k: int, terms: Terms) -> Vec:
 
 
 def newton_euler_derivative(d: Derivation, k: int, terms: Terms) -> Vec:
-    """``tau^(k)`` (``Terms.INVERSE_DYNAMICS``) or ``Q_grav^(k)`` (``Terms.GRAVITY``)."""
+    """``tau^(k)`` (``Terms.INVERSE_DYNAMICS``, with the drives' ``Ia q^(k+2) + fv q^(k+1)``) or
+    ``Q_grav^(k)`` (``Terms.GRAVITY``)."""
     jets = [[body_wrench_derivative(d, i, r, terms) for r in range(k + 1)] for i in range(d.n)]
-    return backward_derivative(d, jets, k)
+    tau = backward_derivative(d, jets, k)
+    return with_drives(d, tau, k) if terms is Terms.INVERSE_DYNAMICS else tau
 
 
 def external_torques_derivative(d: Derivation, wrenches: Sequence[Mapping[str, Sequence]], k: int) -> Vec:
