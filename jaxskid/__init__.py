@@ -1,6 +1,8 @@
 """jaxskid: closed-form rigid-body equations of motion, derived in SymPy and lowered to JAX."""
 
-from ._errors import DescriptionWarning, JaxskidError, ModelError, RequestError, ShapeError
+from ._errors import (
+    DescriptionWarning, IdentificationError, IdentificationWarning, JaxskidError, ModelError, RequestError, ShapeError,
+)
 from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from .model._drive import Drive
 from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
@@ -59,6 +61,8 @@ __all__ = [
     "NativeDynamics",
     "Options",
     "RequestError",
+    "IdentificationError",
+    "IdentificationWarning",
     "Robot",
     "ShapeError",
     "pose",

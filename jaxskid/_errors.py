@@ -54,3 +54,13 @@ class RequestError(JaxskidError, ValueError):
 
 class ShapeError(JaxskidError, ValueError):
     """An argument passed to a generated function has the wrong shape or size."""
+
+
+class IdentificationError(JaxskidError, ValueError):
+    """Identification data that cannot determine the parameters asked for: a regressor whose columns are
+    linearly dependent (the message names them and the combination), or too few equations."""
+
+
+class IdentificationWarning(UserWarning):
+    """Identification data that determine the parameters only poorly: a regressor with a large condition
+    number (the message names the columns of the worst-determined direction)."""

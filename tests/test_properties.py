@@ -168,7 +168,7 @@ def param_vector(robot, eqs) -> np.ndarray:
 
 
 @pytest.mark.slow
-@deterministic(210)
+@deterministic(100)
 @given(robot=random_trees())
 def test_random_trees_match_pinocchio_and_m_is_spd(robot):
     eqs = jaxskid.derive(robot, QUANTITIES)
@@ -184,7 +184,7 @@ def test_random_trees_match_pinocchio_and_m_is_spd(robot):
 
 
 @pytest.mark.slow
-@deterministic(60)
+@deterministic(30)
 @given(robot=random_trees())
 def test_mdot_minus_2c_is_skew_symmetric(robot):
     eqs = jaxskid.derive(robot, ("mass_matrix", "coriolis_matrix"))
@@ -207,7 +207,7 @@ def test_mdot_minus_2c_is_skew_symmetric(robot):
 
 
 @pytest.mark.slow
-@deterministic(60)
+@deterministic(30)
 @given(robot=random_trees())
 def test_yaml_round_trip_gives_an_identical_model(robot, tmp_path_factory):
     path = tmp_path_factory.mktemp("roundtrip") / f"{robot.name}.yaml"

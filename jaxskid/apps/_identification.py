@@ -18,6 +18,7 @@ simulated trajectories (:func:`trajectory_loss`).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
@@ -28,7 +29,7 @@ import numpy as np
 import optax
 import scipy.linalg
 
-from .._errors import RequestError, ShapeError
+from .._errors import IdentificationError, IdentificationWarning, RequestError, ShapeError
 from ..runtime._dynamics import Dynamics
 from ..runtime._jit import jit
 from ._integrators import RK4
@@ -86,29 +87,44 @@ def random_states(n: int, samples: int, seed: int = 0, *, scale: float = 1.0) ->
 
 
 def base_parameters(
-    dyn: Dynamics,
+    source,
     params=None,
     *,
     samples: int = 100,
     seed: int = 0,
     tol: float = 1e-8,
     names: Sequence[str] = (),
+    n_dof: int | None = None,
 ) -> BaseParameters:
-    """The base parameters of ``dyn``'s regressor (QR with column pivoting on random states).
+    """The base parameters of a regressor (QR with column pivoting of it stacked over states).
 
     Args:
-        dyn: lowered with ``regressor``.
-        params: the (kinematic) parameter values the regressor is evaluated at.
-        samples: random states stacked (``samples * n`` rows; more than ``10 n_bodies / n`` needed).
+        source: any regressor: a :class:`Dynamics` lowered with ``regressor`` (evaluated at ``samples`` random
+            states), a function ``f(q, qd, qdd) -> (samples, n, p)`` of batched states ``(samples, n)`` (give
+            ``n_dof``; e.g. the regressor with extra columns of your own), or a sampled regressor, an array
+            ``(samples, n, p)`` or ``(rows, p)``.
+        params: the (kinematic) parameter values a :class:`Dynamics` regressor is evaluated at.
+        samples: random states stacked (``samples * n`` rows; more than ``p / n`` needed).
         seed: the random states' seed.
         tol: a pivot below ``tol * |R_00|`` counts as zero (the regressor entries are O(1) here).
-        names: names of the standard parameters (``jaxskid.standard_parameter_names``).
+        names: names of the columns (``jaxskid.standard_parameter_names`` for the standard regressor).
+        n_dof: the number of joints, for a function ``source``.
     """
-    if "regressor" not in dyn.quantities:
-        raise RequestError(f"base_parameters needs the quantity regressor; lowered: {', '.join(dyn.quantities)}")
-    q, qd, qdd = random_states(dyn.n_dof, samples, seed)
-    y = np.asarray(dyn.regressor(q, qd, qdd, params)).reshape(samples * dyn.n_dof, -1)
-    return base_parameters_from(y, tol=tol, names=names)
+    if isinstance(source, Dynamics):
+        if "regressor" not in source.quantities:
+            raise RequestError(f"base_parameters needs the quantity regressor; lowered: {', '.join(source.quantities)}")
+        q, qd, qdd = random_states(source.n_dof, samples, seed)
+        y = source.regressor(q, qd, qdd, params)
+    elif callable(source):
+        if n_dof is None:
+            raise RequestError("base_parameters: give n_dof= with a regressor function f(q, qd, qdd)")
+        y = source(*random_states(n_dof, samples, seed))
+    else:
+        y = source
+    y = np.asarray(y, dtype=float)
+    if y.ndim not in (2, 3):
+        raise ShapeError(f"base_parameters: expected a regressor (samples, n, p) or (rows, p), got shape {y.shape}")
+    return base_parameters_from(y.reshape(-1, y.shape[-1]), tol=tol, names=names)
 
 
 def base_parameters_from(w: np.ndarray, *, tol: float = 1e-8, names: Sequence[str] = ()) -> BaseParameters:
@@ -172,7 +188,7 @@ class Estimate(NamedTuple):
     history: np.ndarray | None = None
 
 
-def identify(y, tau, method=LeastSquares()) -> Estimate:
+def identify(y, tau, method=LeastSquares(), *, names: Sequence[str] = ()) -> Estimate:
     """Estimate ``theta`` in ``tau = Y theta + noise`` from stacked samples.
 
     Args:
@@ -180,6 +196,16 @@ def identify(y, tau, method=LeastSquares()) -> Estimate:
             :meth:`BaseParameters.reduce` for the least-squares methods).
         tau: the measured joint forces ``(samples, n)``.
         method: :class:`LeastSquares`, :class:`WeightedLeastSquares` or :class:`GradientFit`.
+        names: the columns' names, for the messages below.
+
+    Raises:
+        IdentificationError: for least squares, fewer equations than unknowns, or columns of ``y`` that are
+            linear combinations of others (the message names them and the combination; reduce ``y`` to base
+            parameters, or excite the motion that separates them).
+
+    Warns:
+        IdentificationWarning: the weighted regressor's condition number is above 1e8; the estimate's
+            covariance says which combinations are poorly determined.
     """
     y = np.asarray(y, dtype=float)
     tau = np.asarray(tau, dtype=float)
@@ -190,30 +216,68 @@ def identify(y, tau, method=LeastSquares()) -> Estimate:
         return _gradient_fit(y, tau, method)
     if isinstance(method, WeightedLeastSquares):
         if method.sigma is None:
-            first = _lstsq(y, tau, np.ones(n))
+            first = _lstsq(y, tau, np.ones(n), names)
             sigma = first.residual_std
         else:
             sigma = np.broadcast_to(np.asarray(method.sigma, dtype=float), (n,))
-        return _lstsq(y, tau, 1.0 / sigma)
+        return _lstsq(y, tau, 1.0 / sigma, names)
     if isinstance(method, LeastSquares):
-        return _lstsq(y, tau, np.ones(n))
+        return _lstsq(y, tau, np.ones(n), names)
     raise RequestError(f"identify: unknown method {method!r}; expected LeastSquares, WeightedLeastSquares or GradientFit")
 
 
-def _lstsq(y, tau, weight) -> Estimate:
+def _lstsq(y, tau, weight, names: Sequence[str] = ()) -> Estimate:
     s, n, p = y.shape
     a = (y * weight[None, :, None]).reshape(s * n, p)
     b = (tau * weight[None, :]).reshape(s * n)
     if s * n <= p:
-        raise ShapeError(f"identify: {s * n} equations for {p} unknowns; stack more samples")
-    qm, rm = np.linalg.qr(a)
-    theta = scipy.linalg.solve_triangular(rm, qm.T @ b)
+        raise IdentificationError(f"identify: {s * n} equations for {p} unknowns; stack more samples")
+    qm, rm, perm = scipy.linalg.qr(a, mode="economic", pivoting=True)
+    _check_rank(rm, perm, names)
+    theta = np.empty(p)
+    theta[perm] = scipy.linalg.solve_triangular(rm, qm.T @ b)
     res = (tau - np.einsum("snp,p->sn", y, theta))
     dof = (s * n - p) / (s * n)
     residual_std = np.sqrt(np.mean(res * res, axis=0) / dof)
     sigma2 = np.sum((res * weight[None, :]) ** 2) / (s * n - p)
-    rinv = scipy.linalg.solve_triangular(rm, np.eye(p))
+    rinv = np.zeros((p, p))
+    rinv[perm] = scipy.linalg.solve_triangular(rm, np.eye(p))
     return Estimate(theta, sigma2 * rinv @ rinv.T, residual_std)
+
+
+RANK_TOL = 1e-10
+"""A pivot of the column-pivoted QR below ``RANK_TOL |R_00|`` makes its column dependent on the earlier ones."""
+WARN_COND = 1e8
+"""The condition number above which :func:`identify` warns."""
+
+
+def _check_rank(r: np.ndarray, perm: np.ndarray, names: Sequence[str]) -> None:
+    """Raise for dependent columns of ``Y P = Q R``, naming the first and its combination; warn when
+    ``cond(R)`` exceeds :data:`WARN_COND`."""
+    label = (lambda k: names[k]) if len(names) == r.shape[1] else (lambda k: f"column {k}")
+    diag = np.abs(np.diag(r))
+    rank = int(np.sum(diag > RANK_TOL * diag[0])) if diag.size and diag[0] > 0 else 0
+    if rank < r.shape[1]:
+        first = int(perm[rank])
+        beta = scipy.linalg.solve_triangular(r[:rank, :rank], r[:rank, rank]) if rank else np.zeros(0)
+        order = np.argsort(-np.abs(beta))[:6]
+        terms = [f"{'-' if beta[k] < 0 else '+'} {abs(beta[k]):.4g} {label(int(perm[k]))}" for k in order
+                 if abs(beta[k]) > 1e-9 * np.abs(beta).max()]
+        combo = " ".join(terms).removeprefix("+ ") or "0"
+        dependent = ", ".join(label(int(k)) for k in perm[rank:])
+        verb = "depends" if r.shape[1] - rank == 1 else "depend"
+        raise IdentificationError(
+            f"identify: the regressor has rank {rank} < {r.shape[1]} columns: {dependent} {verb} on the others "
+            f"(e.g. {label(first)} = {combo}); reduce it to base parameters (jaxskid.base_parameters(Y).reduce(Y)) "
+            "or use samples that separate them")
+    cond = diag[0] / diag[-1] if diag.size else 1.0
+    if cond > WARN_COND:
+        # the direction R^-1 e_last is the worst determined; name its largest columns
+        v = np.zeros(r.shape[1])
+        v[perm] = scipy.linalg.solve_triangular(r, np.eye(r.shape[1])[:, -1])
+        worst = ", ".join(label(int(k)) for k in np.argsort(-np.abs(v))[:4])
+        warnings.warn(f"identify: the regressor's condition number is {cond:.2g}; the worst-determined "
+                      f"combination is mostly {worst}", IdentificationWarning, stacklevel=3)
 
 
 def _gradient_fit(y, tau, method: GradientFit) -> Estimate:
