@@ -292,3 +292,34 @@ def test_lagrange_route_with_drives():
                        ("momentum", (q, qd)), ("coriolis_torques", (q, qd))):
         a, b = (np.asarray(getattr(dyn, name)(*args, p)) for dyn in (lagrange, screw))
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12, err_msg=name)
+
+
+def test_smooth_coulomb_friction():
+    """Options(friction_smoothing=eps): fc tanh(qd / eps) in tau, its regressor column and time derivative, and
+    a gradient in qd of fc / eps sech^2 (qd / eps); against the formula and finite differences."""
+    robot = jaxskid.load(ROBOTS_DIR / "double_pendulum.yaml").with_drives()
+    eps = 0.05
+    names = ["inverse_dynamics", "regressor", "inverse_dynamics_dot"]
+    smooth = jaxskid.lower(robot, names, options=jaxskid.Options(friction_smoothing=eps))
+    exact = jaxskid.lower(robot, names)
+    fc = np.array([0.7, 0.3])
+    p = smooth.param_vector({f"{j}_fc": v for j, v in zip(robot.joint_names, fc)})
+    rng = np.random.default_rng(8)
+    q, qd, qdd, q3d = rng.uniform(-0.2, 0.2, size=(4, robot.n_dof))
+    friction = np.asarray(smooth.inverse_dynamics(q, qd, qdd, p)) - np.asarray(exact.inverse_dynamics(q, qd, qdd, p))
+    np.testing.assert_allclose(friction, fc * (np.tanh(qd / eps) - np.sign(qd)), rtol=1e-12, atol=1e-12)
+    y = np.asarray(smooth.regressor(q, qd, qdd, p))
+    np.testing.assert_allclose(y @ jaxskid.standard_params(robot, p), smooth.inverse_dynamics(q, qd, qdd, p),
+                               rtol=1e-12, atol=1e-12)
+    grad = jax.jacfwd(lambda v: smooth.inverse_dynamics(q, v, qdd, p))(jax.numpy.asarray(qd))
+    np.testing.assert_allclose(np.diag(np.asarray(grad)) - np.diag(np.asarray(
+        jax.jacfwd(lambda v: exact.inverse_dynamics(q, v, qdd, p))(jax.numpy.asarray(qd)))),
+        fc / eps / np.cosh(qd / eps) ** 2, rtol=1e-10)
+    h = 1e-6  # d tau / dt along q(t) = q + qd t + qdd t^2/2 + q3d t^3/6, central differences
+    def tau_at(t):
+        return np.asarray(smooth.inverse_dynamics(q + qd * t + qdd * t**2 / 2 + q3d * t**3 / 6,
+                                                  qd + qdd * t + q3d * t**2 / 2, qdd + q3d * t, p))
+    np.testing.assert_allclose(smooth.inverse_dynamics_dot(q, qd, qdd, q3d, p), (tau_at(h) - tau_at(-h)) / (2 * h),
+                               rtol=1e-6, atol=1e-7)
+    with pytest.raises(jaxskid.RequestError, match="friction_smoothing"):
+        jaxskid.Options(friction_smoothing=-1.0)

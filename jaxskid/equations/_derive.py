@@ -141,7 +141,7 @@ def derive(
     options = options or Options()
     names = resolve(robot, quantities)
     inputs = Inputs.of(robot)
-    d = Derivation(robot, inputs, trig=options.trig)
+    d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing))
     built: dict[str, list] = {}
     for name in _progress(names, progress):
         spec = QUANTITIES[name]

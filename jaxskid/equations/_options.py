@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import sympy as sp
@@ -28,6 +29,10 @@ class Options:
             ``"trigsimp"`` (``sympy.trigsimp`` of each assignment).
         trig: ``"symbols"`` (default) names sin(q_i) and cos(q_i) once; ``"inline"`` leaves the calls
             in place.
+        friction_smoothing: Coulomb friction of the joints' drives (:class:`jaxskid.Drive`): ``0`` (default)
+            ``fc sign(qd)``, exact, with zero derivative in qd; ``eps > 0`` ``fc tanh(qd / eps)``, smooth, for
+            stiff integration and gradients through rollouts (rad/s or m/s; the regressor's Coulomb columns
+            follow).
         route: how M, C qd, Q_grav, tau and the kinetic energy are derived. ``"screw"`` (default): the
             Lie-group recursions (Newton-Euler, composite rigid body). ``"lagrange"``: the Euler-Lagrange
             equations of the link energies (:mod:`jaxskid.symbolic._lagrange`), the seed blog's route, a
@@ -38,12 +43,16 @@ class Options:
     simplify: str = "none"
     trig: str = "symbols"
     route: str = "screw"
+    friction_smoothing: float = 0.0
 
     def __post_init__(self):
         for field_name, allowed in _ALLOWED.items():
             value = getattr(self, field_name)
             if value not in allowed:
                 raise RequestError(f"Options.{field_name}: expected one of {', '.join(allowed)}, got {value!r}")
+        eps = self.friction_smoothing
+        if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not math.isfinite(eps) or eps < 0:
+            raise RequestError(f"Options.friction_smoothing: expected a finite number >= 0 (0: sign), got {eps!r}")
 
 
 def apply_options(assignments: list, outputs: dict, options: Options) -> tuple[list, dict]:

@@ -93,6 +93,7 @@ class Derivation:
     """The robot, its :class:`Inputs`, the tape every intermediate is named on, and the memo of the
     :func:`memoized` algorithms.
 
+    ``friction_smoothing`` is ``0`` (Coulomb friction as ``sign(qd)``) or ``eps > 0`` (``tanh(qd / eps)``).
     ``trig`` is ``"symbols"`` (sin and cos of each ``q_i`` named once on the tape) or ``"inline"`` (left
     in every expression).
     """
@@ -100,6 +101,7 @@ class Derivation:
     robot: Robot
     inputs: Inputs
     trig: str = "symbols"
+    friction_smoothing: float = 0.0
     tape: Tape = field(default_factory=Tape)
     memo: dict = field(default_factory=dict, repr=False)
 

@@ -1,7 +1,7 @@
 """The joints' drives on the tape: armature on the diagonal of M, friction and offset in the bias.
 
 Joint ``j``'s drive (:mod:`jaxskid.model._drive`) adds ``Ia_j qdd_j + fv_j qd_j + fc_j sign(qd_j) + fo_j``
-to its generalized force (Pinocchio's ``model.armature`` in ``crba``, ``rnea`` and ``aba`` for ``Ia``). This
+to its generalized force (``tanh(qd_j / eps)`` for ``sign`` with ``Options(friction_smoothing=eps)``) (Pinocchio's ``model.armature`` in ``crba``, ``rnea`` and ``aba`` for ``Ia``). This
 module is the one place the drive terms are formed; the algorithms built on M and tau add them:
 :func:`armature` to the diagonal of M (:mod:`._crba`), :func:`drive_torques` to tau and to the bias
 (:mod:`._rnea`, hence forward dynamics, the vector-Jacobian product of inverse dynamics and rollouts) and
@@ -33,9 +33,25 @@ class sign(sp.sign):  # noqa: N801 - printed by every code printer under SymPy's
         return sp.Integer(0)
 
 
+def coulomb(d: Derivation, v: sp.Expr) -> sp.Expr:
+    """The Coulomb friction's shape of velocity ``v``, named on the tape: ``sign(v)``, or ``tanh(v / eps)``
+    with the derivation's ``friction_smoothing`` ``eps > 0`` (a smooth approximation whose slope at rest is
+    ``1 / eps``)."""
+    eps = d.friction_smoothing
+    return d.tape(sp.tanh(v / sp.Float(eps)) if eps > 0 else sign(v))
+
+
 def armature(d: Derivation) -> Vec:
     """``Ia``, one entry per joint (0 without a drive): ``M + diag(Ia)`` is the mass matrix with drives."""
     return [sp.Integer(0) if j.drive is None else j.drive.armature for j in d.robot.joints]
+
+
+def _smooth_rate(d: Derivation, i: int, k: int) -> sp.Expr:
+    """``d^k/dt^k tanh(qd_i / eps)`` in the state's time derivatives (Taylor in t of ``qd_i(t)``)."""
+    t = sp.Dummy("t")
+    state = d.inputs.state
+    v = sum((state[1 + r][i] * t**r / sp.factorial(r) for r in range(k + 1)), sp.Integer(0))
+    return sp.diff(sp.tanh(v / sp.Float(d.friction_smoothing)), t, k).subs(t, 0)
 
 
 def drive_torques(d: Derivation, k: int = 0, *, inertial: bool = True) -> Vec:
@@ -43,7 +59,7 @@ def drive_torques(d: Derivation, k: int = 0, *, inertial: bool = True) -> Vec:
 
     ``k = 0``: the drive torques (without ``Ia qdd`` if not ``inertial``: the drives' share of the bias);
     ``k >= 1``: ``Ia q^(k+2) + fv q^(k+1)`` (armature and friction coefficients are constant, and
-    ``sign(qd)`` is piecewise constant).
+    ``sign(qd)`` is piecewise constant), plus ``fc d^k/dt^k tanh(qd / eps)`` with friction smoothing.
     """
     state = d.inputs.state
     out = []
@@ -56,7 +72,9 @@ def drive_torques(d: Derivation, k: int = 0, *, inertial: bool = True) -> Vec:
         if inertial:
             terms.append(ia * state[k + 2][i])
         if k == 0:
-            terms += [fc * d.tape(sign(state[1][i])), fo]
+            terms += [fc * coulomb(d, state[1][i]), fo]
+        elif d.friction_smoothing > 0:
+            terms.append(fc * _smooth_rate(d, i, k))
         out.append(d.tape(sp.Add(*terms)))
     return out
 
@@ -84,6 +102,6 @@ def drive_columns(d: Derivation) -> list[Vec]:
     ``(Ia, fv, fc, fo) -> (qdd_j, qd_j, sign(qd_j), 1)`` in row j and 0 elsewhere. Shape: 4 n_driven x n."""
     cols = []
     for i in d.robot.driven:
-        for value in (d.qdd[i], d.qd[i], d.tape(sign(d.qd[i])), sp.Integer(1)):
+        for value in (d.qdd[i], d.qd[i], coulomb(d, d.qd[i]), sp.Integer(1)):
             cols.append([value if r == i else sp.Integer(0) for r in range(d.n)])
     return cols
