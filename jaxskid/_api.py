@@ -10,17 +10,18 @@ from pathlib import Path
 
 from ._errors import ModelError, RequestError
 from .codegen import Layout
-from .codegen._c import emit_c, native_block
+from .codegen._c import emit_c, native_block, native_sources
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
 from .lowering._xla_cache import default_compilation_cache
-from .lowering._ffi import ffi_library
+from .lowering._ffi import ffi_library, ffi_library_soon
 from .lowering._extension import Method
 from .lowering._native import build, default_backend
 from .model._robot import Robot
 from .runtime._dynamics import Dynamics
+from .runtime._ffi import enabled as native_enabled
 from .runtime._native import NativeDynamics
 
 
@@ -98,7 +99,11 @@ def lower(
     found = read_entry(path, key) if path is not None else None
     if found is None:
         eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
-        module = module_source(Layout(eqs, names, jax_names)) + native_block(eqs, names)
+        native = native_sources(eqs, names)
+        if native is not None and cache and native_enabled():
+            # the C compiler works on the native kernels while the JAX module is printed
+            ffi_library_soon(native, Path(cache_dir or default_cache_dir()) / "native")
+        module = module_source(Layout(eqs, names, jax_names)) + native_block(native)
         found = store_entry(path, module, key)
     namespace, source = found
     native_root = Path(cache_dir or default_cache_dir()) / "native" if cache else None

@@ -129,16 +129,15 @@ def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2)
 
 
-def native_block(eqs, names: Sequence[str]) -> str:
-    """Python source assigning ``NATIVE_C`` for appending to a generated JAX module: the C of the native
-    kernels of ``names`` (``{"stem", "header", "source", "backward", "kernels"}``): the backward step of
-    forward dynamics when ``names`` hold :data:`FFI_QUANTITIES` (``backward``), and the
+def native_sources(eqs, names: Sequence[str]) -> dict | None:
+    """The C of the native kernels of ``names``, ``{"stem", "header", "source", "backward", "kernels"}``:
+    the backward step of forward dynamics when ``names`` hold :data:`FFI_QUANTITIES` (``backward``), and the
     :func:`native_quantities`, each as ``(name, input sizes, input core ranks, output size, output rank)``
-    with the parameters last; ``""`` when there are none."""
+    with the parameters last; None when there are none."""
     backward = set(FFI_QUANTITIES) <= set(names)
     kernels = native_quantities(eqs, names)
     if not (backward or kernels):
-        return ""
+        return None
     layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])))
     files = emit_c(layout)
     table = []
@@ -146,9 +145,14 @@ def native_block(eqs, names: Sequence[str]) -> str:
         args = (*eqs.quantities[name].args, "p")
         table.append((name, tuple(layout.arg_size(a) for a in args), tuple(len(layout.arg_shape(a)) for a in args),
                       math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
-    native = {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"],
-              "backward": backward, "kernels": tuple(table)}
-    return f"\nNATIVE_C = {native!r}\n"
+    return {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"],
+            "backward": backward, "kernels": tuple(table)}
+
+
+def native_block(native: dict | None) -> str:
+    """Python source assigning ``NATIVE_C`` (the :func:`native_sources`) for appending to a generated JAX
+    module; ``""`` for None."""
+    return "" if native is None else f"\nNATIVE_C = {native!r}\n"
 
 
 def emit_cpp(layout: Layout) -> dict[str, str]:
