@@ -16,7 +16,7 @@ from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
 from .lowering._xla_cache import default_compilation_cache
-from .lowering._ffi import ffi_library, ffi_library_soon
+from .lowering._ffi_build import ffi_library, ffi_library_soon
 from .lowering._extension import Method
 from .lowering._native import build, default_backend
 from .model._robot import Robot
