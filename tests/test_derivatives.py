@@ -23,6 +23,7 @@ import pytest
 import sympy as sp
 
 import jaxskid
+from jaxskid.testing import closed_form
 from helpers import ROBOTS_DIR, load, max_rel_err
 from pinref import to_pinocchio
 
@@ -146,14 +147,6 @@ def test_compiled_matches_eager():
 
 
 # ------------------------------------------------------------------------------------------- 2R arm
-def inline(eqs, name):
-    """The closed form of a quantity: the program's assignments substituted back into its outputs."""
-    values = {}
-    for s, e in eqs.program([name]):
-        values[s] = e.xreplace(values)
-    return [e.xreplace(values) for e in eqs.quantities[name].outputs]
-
-
 def test_arm_2r_mass_matrix_derivatives_closed_form():
     """Lynch & Park (2017) sec. 8.1.1: M11 = m1 l1^2 + m2 (l1^2 + 2 l1 l2 cos q2 + l2^2),
     M12 = m2 (l1 l2 cos q2 + l2^2), M22 = m2 l2^2, so (by hand)
@@ -169,5 +162,5 @@ def test_arm_2r_mass_matrix_derivatives_closed_form():
     first = [-m2 * l1 * l2 * sp.sin(q2) * qd2 * k for k in pattern]
     second = [-m2 * l1 * l2 * (sp.cos(q2) * qd2**2 + sp.sin(q2) * qdd2) * k for k in pattern]
     for name, ref in (("mass_matrix_dot", first), ("mass_matrix_ddot", second)):
-        for ours, want in zip(inline(eqs, name), ref):
+        for ours, want in zip(closed_form(eqs, name), ref):
             assert sp.simplify(sp.expand_trig(ours - want)) == 0, (name, ours, want)

@@ -11,6 +11,7 @@ import pytest
 import sympy as sp
 
 import jaxskid
+from jaxskid.testing import closed_form
 from pinref import to_pinocchio
 
 ROBOTS = sorted((Path(__file__).parents[1] / "robots").glob("*.yaml"))
@@ -48,14 +49,6 @@ def test_seed_robot_matches_pinocchio(path):
             assert np.abs(np.asarray(poses[f][k]) - data.oMf[model.getFrameId(f)].homogeneous).max() <= 1e-9
 
 
-def inline(eqs, name):
-    """The closed form of a quantity: the program's assignments substituted back into its outputs."""
-    values = {}
-    for s, e in eqs.program([name]):
-        values[s] = e.xreplace(values)
-    return [e.xreplace(values) for e in eqs.quantities[name].outputs]
-
-
 def test_arm_2r_textbook_closed_form():
     robot = jaxskid.load(Path(__file__).parents[1] / "robots" / "arm_2r.yaml")
     assert set(robot.parameters) == {"m1", "m2", "l1", "l2", "g"}
@@ -68,9 +61,9 @@ def test_arm_2r_textbook_closed_form():
         m2 * (l1 * l2 * c2 + l2**2), m2 * l2**2,
     ]
     textbook_g = [(m1 + m2) * g * l1 * sp.cos(q1) + m2 * g * l2 * sp.cos(q1 + q2), m2 * g * l2 * sp.cos(q1 + q2)]
-    for ours, ref in zip(inline(eqs, "mass_matrix"), textbook_m):
+    for ours, ref in zip(closed_form(eqs, "mass_matrix"), textbook_m):
         assert sp.simplify(sp.expand_trig(ours - ref)) == 0
-    for ours, ref in zip(inline(eqs, "gravity_torques"), textbook_g):
+    for ours, ref in zip(closed_form(eqs, "gravity_torques"), textbook_g):
         assert sp.simplify(sp.expand_trig(ours - ref)) == 0
 
 

@@ -21,13 +21,18 @@ from ._rnea import backward
 
 
 @memoized
+def body_momentum(d: Derivation, i: int) -> Vec:
+    """``M_i V_i``, body i's momentum in its own frame."""
+    return d.tape.vec(sa.apply_inertia_parts(sa.inertia_parts(inertia(d, i)), twist(d, i)))
+
+
+@memoized
 def kinetic_energy(d: Derivation) -> sp.Expr:
     """``K = 1/2 sum_i V_i^T M_i V_i``."""
     t = d.tape
     total = []
     for i in range(d.n):
-        v = twist(d, i)
-        total.append(t(sa.dot(v, t.vec(sa.apply_inertia_parts(sa.inertia_parts(inertia(d, i)), v)))))
+        total.append(t(sa.dot(twist(d, i), body_momentum(d, i))))
     return t(sp.Add(*total) / 2)
 
 
@@ -45,6 +50,4 @@ def potential_energy(d: Derivation) -> sp.Expr:
 
 def momentum(d: Derivation) -> Vec:
     """``p = M(q) qd``, the backward pass of the body momenta ``M_i V_i``."""
-    t = d.tape
-    return backward(d, [t.vec(sa.apply_inertia_parts(sa.inertia_parts(inertia(d, i)), twist(d, i)))
-                        for i in range(d.n)])
+    return backward(d, [body_momentum(d, i) for i in range(d.n)])
