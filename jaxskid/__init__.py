@@ -5,7 +5,7 @@ from ._errors import (
 )
 from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from .model._drive import Drive
-from .model._robot import Frame, Joint, Robot, spatial_to_body, symbol
+from .model._robot import Frame, Joint, JointLimits, Mimic, Robot, spatial_to_body, symbol
 from .model._standard import params_from_standard, standard_parameter_names, standard_params
 from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from .lowering._cache import cache_dir
@@ -22,11 +22,19 @@ from .apps._field import Controller, vector_field
 from .apps._integrators import RK4, SemiImplicitEuler
 from .apps._saving import Checkpoint, SaveAt
 from .apps._simulate import Trajectory, rollout
+from .apps._field import HeldInput
+from .apps._motor import DCMotors
 from .apps._identification import (
-    Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky, Standard,
-    WeightedLeastSquares, base_parameters, fit, identify, physically_consistent, quantity_loss, trajectory_loss,
+    Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky,
+    PhysicallyConsistent, Standard, WeightedLeastSquares, base_parameters, fit, identify, physically_consistent,
+    quantity_loss, trajectory_loss,
 )
+from .apps._energy_id import EnergyBalance, energy_balance
 from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
+from .apps._excitation import ExcitationResult, FourierTrajectory, design_excitation
+from .apps._parameterizations import nearest_consistent
+from .apps._signals import estimate_derivatives, lowpass, parallel_filter, quantize
+from .apps._validation import Validation, plot_validation, validate
 from .description._yaml_schema import DescriptionExtras, parse_description, read_description, read_extras
 from .description._yaml_writer import robot_to_dict, write_description
 from .description._dh import DH, dh_robot
@@ -57,6 +65,8 @@ __all__ = [
     "JaxskidError",
     "DescriptionWarning",
     "Joint",
+    "JointLimits",
+    "Mimic",
     "ModelError",
     "NativeDynamics",
     "Options",
@@ -90,6 +100,8 @@ __all__ = [
     "RK4",
     "SemiImplicitEuler",
     "Controller",
+    "DCMotors",
+    "HeldInput",
     "Trajectory",
     "forward_dynamics",
     "mass_matrix_condition",
@@ -110,14 +122,28 @@ __all__ = [
     "GradientFit",
     "LeastSquares",
     "LogCholesky",
+    "PhysicallyConsistent",
     "Standard",
     "WeightedLeastSquares",
     "base_parameters",
     "fit",
     "identify",
     "physically_consistent",
+    "nearest_consistent",
+    "Validation",
+    "estimate_derivatives",
+    "lowpass",
+    "parallel_filter",
+    "quantize",
+    "plot_validation",
+    "validate",
     "quantity_loss",
     "trajectory_loss",
+    "ExcitationResult",
+    "FourierTrajectory",
+    "design_excitation",
+    "EnergyBalance",
+    "energy_balance",
     "spatial_to_body",
     "symbol",
 ]

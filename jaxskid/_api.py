@@ -33,7 +33,8 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, dr
     drive (:class:`jaxskid.Drive`) with the parameters ``J_Ia`` (armature), ``J_fv`` (viscous friction),
     ``J_fc`` (Coulomb friction) and ``J_fo`` (torque offset), default 0 (for URDF, ``J_fv`` and ``J_fc``
     default to the joint's ``<dynamics damping friction>``; a YAML ``drives`` entry keeps its values).
-    Further keyword options go to the reader (for URDF: ``symbolic_inertia``, ``gravity``, ``end_effectors``).
+    Further keyword options go to the reader (for URDF: ``symbolic_inertia``, ``gravity``, ``end_effectors``,
+    ``mimic``: couple the ``<mimic>`` joints, whose positions then follow the independent joints).
     """
     p = Path(path)
     ext = p.suffix.lower()

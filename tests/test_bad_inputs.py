@@ -9,7 +9,6 @@ disk, JSON, ``.yml``, non-UTF-8 bytes and URDF variants.
 
 from __future__ import annotations
 
-import logging
 import os
 import subprocess
 import sys
@@ -156,15 +155,15 @@ def test_bad_file_gives_one_clear_model_error(name):
         assert module == "builtins" or isinstance(chained, JaxskidError)
 
 
-def test_mimic_joint_is_read_as_independent_with_a_warning_naming_file_and_joint(caplog):
+def test_mimic_joint_is_read_as_independent_with_a_warning_naming_file_and_joint():
     path = BAD / "urdf_mimic.urdf"
-    with caplog.at_level(logging.WARNING, logger="jaxskid"):
+    with pytest.warns(jaxskid.DescriptionWarning) as record:
         robot = jaxskid.load(path)
     assert robot.joint_names == ("j1", "j2") and robot.n_dof == 2  # as Pinocchio's default (mimic=False)
-    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    warnings = [str(w.message) for w in record if issubclass(w.category, jaxskid.DescriptionWarning)]
     assert len(warnings) == 1
     assert warnings[0].startswith(f"{path}: joint[name=j2].mimic: ")
-    assert "'j1'" in warnings[0]
+    assert "'j1'" in warnings[0] and "mimic=True" in warnings[0]
 
 
 SAMPLE = ["missing_mass_inertia.yaml", "json_nan_screw.json", "binary.yaml",

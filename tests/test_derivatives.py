@@ -7,7 +7,7 @@
 * dM/dt = C + C^T and d^2M/dt^2 = dC/dt + dC/dt^T (C is Christoffel-consistent);
 * the 2R arm's dM/dt and d^2M/dt^2 against the textbook closed form, symbolically.
 
-Robots: Panda (7 DOF, fingers locked), UR5, solo12 (fixed base) and the hopping leg, random states,
+Robots: Panda (7 DOF, fingers locked), solo12 (fixed base, a tree) and the hopping leg, random states,
 float64, relative error at most 1e-9 (normwise, per state). The functions are evaluated eagerly under
 ``jax.disable_jit``: the check is about the derivation, and compiling the second-order Coriolis matrix
 of a 7-DOF arm would dominate the suite; ``test_compiled_matches_eager`` covers the jit path.
@@ -37,8 +37,8 @@ TOL = 1e-9
 SLOW = pytest.mark.slow
 
 
-@pytest.fixture(scope="module", params=[pytest.param("panda7", marks=SLOW), pytest.param("ur5", marks=SLOW),
-                                        pytest.param("solo12", marks=SLOW), "hopping_leg"])
+@pytest.fixture(scope="module", params=[pytest.param("panda7", marks=SLOW), pytest.param("solo12", marks=SLOW),
+                                        "hopping_leg"])
 def case(request):
     robot = load(request.param)
     dyn = jaxskid.lower(robot, ALL)

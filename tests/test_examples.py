@@ -35,6 +35,7 @@ def test_identify_panda(tmp_path):
     assert out["wls_error"] < 0.1 and out["max_abs_z"] < 4.5
     assert np.max(out["rms_validation"]) < 0.05  # Nm, a fraction of the measurement noise
     assert out["physically_consistent"]
+    assert out["consistent_error"] < 1.5 * out["wls_error"]  # as accurate as least squares
     assert np.max(out["rms_physical"]) < 0.1
     assert out["figure"].exists() and out["figure"].stat().st_size > 10_000
 

@@ -168,7 +168,7 @@ def param_vector(robot, eqs) -> np.ndarray:
 
 
 @pytest.mark.slow
-@deterministic(100)
+@deterministic(60)
 @given(robot=random_trees())
 def test_random_trees_match_pinocchio_and_m_is_spd(robot):
     eqs = jaxskid.derive(robot, QUANTITIES)

@@ -8,7 +8,7 @@ included.
 
 from __future__ import annotations
 
-import logging
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -144,8 +144,8 @@ def test_ten_standard_parameters_per_moving_body(case):
 # ------------------------------------------------------------------------------------------ model contents
 
 
-def test_panda_fixed_links_frames_and_end_effectors(caplog):
-    with caplog.at_level(logging.WARNING, logger="jaxskid.description._urdf"):
+def test_panda_fixed_links_frames_and_end_effectors():
+    with pytest.warns(jaxskid.DescriptionWarning, match=r"joint\[name=panda_finger_joint2\]\.mimic: .*mimic=True"):
         robot = read_urdf(PANDA)
     assert robot.base == "panda_link0"
     assert robot.n_dof == 9
@@ -154,11 +154,9 @@ def test_panda_fixed_links_frames_and_end_effectors(caplog):
     ]
     assert robot.end_effectors == ("panda_leftfinger", "panda_rightfinger", "panda_hand_tcp")
     # panda_finger_joint2 mimics panda_finger_joint1: read as independent (as Pinocchio's default), and said so
-    assert "joint[name=panda_finger_joint2].mimic" in caplog.text
-    caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="jaxskid.description._urdf"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", jaxskid.DescriptionWarning)  # locked: no warning
         locked = read_urdf(PANDA, lock=FINGERS, end_effectors=["panda_hand_tcp"])
-    assert caplog.text == ""
     assert locked.n_dof == 7 and locked.end_effectors == ("panda_hand_tcp",)
     assert {"panda_leftfinger", "panda_rightfinger"} <= {f.name for f in locked.frames}
     assert len(locked.parameters) == 70

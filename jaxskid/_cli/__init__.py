@@ -222,20 +222,25 @@ def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, tri
 @click.option("--dh", is_flag=True,
               help="Describe the chain by a Denavit-Hartenberg table (a dh: block, standard convention; "
                    "jaxskid.dh_robot in a .py) instead of screw coordinates and reference poses.")
+@click.option("--drives", is_flag=True,
+              help="Give every joint a drive (a drives: block): armature, viscous and Coulomb friction and an offset, "
+                   "the parameters joint<i>_Ia, _fv, _fc, _fo with defaults in the assignments.")
 @click.argument("output", type=click.Path(dir_okay=False))
 @click.option("--name", default=None, help="The robot's name [default: the file name; with --urdf, the URDF's].")
 @FORCE
-def template(structure, dof, urdf, dh, output, name, force):
+def template(structure, dof, urdf, dh, drives, output, name, force):
     """Write a robot template to OUTPUT (.yaml, .yml, .json or .py) that loads, derives and lowers as it is.
 
     Give exactly one of -S, --dof or --urdf. The chain has one joint per letter; every length, mass and
     inertia is a parameter with a default. With --dh, its kinematics is a Denavit-Hartenberg table. With
+    --drives, every joint has a drive (armature, friction, offset) of parameters with defaults. With
     --urdf, OUTPUT is a Python script that loads the URDF.
 
     \b
     Examples:
       jaxskid template -S RRP robot.yaml
       jaxskid template --dh -S RRR elbow.yaml
+      jaxskid template --drives -S RRP robot.yaml
       jaxskid template --dof 6 arm6.json --name arm6
       jaxskid template -S PRR leg.py && python leg.py
       jaxskid template --urdf ur5.urdf ur5.py && python ur5.py
@@ -257,6 +262,9 @@ def template(structure, dof, urdf, dh, output, name, force):
                                  f"got {output!r}", param_hint="OUTPUT")
     if dh and urdf is not None:
         raise click.UsageError("--dh describes a chain of -S/--dof; a --urdf script loads the URDF's own kinematics")
+    if drives and urdf is not None:
+        raise click.UsageError("--drives adds drives to a chain of -S/--dof; for a URDF, pass drives=True to "
+                               "jaxskid.load in the script")
     if urdf is not None:
         _urdf_template(urdf, Path(output), name, force)
         return
@@ -269,9 +277,10 @@ def template(structure, dof, urdf, dh, output, name, force):
         name = re.sub(r"[^A-Za-z0-9_]+", "_", Path(output).stem).strip("_") or "robot"
         if name[0].isdigit():
             name = f"robot_{name}"
-    text = render_template(structure, fmt, name=name, kinematics="dh" if dh else "screws")
+    text = render_template(structure, fmt, name=name, kinematics="dh" if dh else "screws", drives=drives)
     _write_new(Path(output), text, force)
-    click.echo(f"wrote {output}: {len(structure)}-joint {structure.upper()} {'DH ' if dh else ''}template '{name}'")
+    click.echo(f"wrote {output}: {len(structure)}-joint {structure.upper()} {'DH ' if dh else ''}template '{name}'"
+               + (" with drives" if drives else ""))
 
 
 def _urdf_template(urdf: str, output: Path, name: str | None, force: bool) -> None:

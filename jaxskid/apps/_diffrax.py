@@ -31,6 +31,7 @@ import jax.numpy as jnp
 
 from .._errors import RequestError
 from ._field import held
+from ._integrators import fixed_step
 from ._saving import Checkpoint, SaveAt
 
 
@@ -64,6 +65,11 @@ class Adaptive:
 
     solver: diffrax.AbstractSolver
     controller: diffrax.AbstractAdaptiveStepSizeController
+    adaptive = True
+
+    def run(self, *args):
+        """:func:`adaptive_rollout` with this solver and controller."""
+        return adaptive_rollout(self, *args)
 
 
 def stepping(integrator, stepsize_controller):
@@ -77,9 +83,7 @@ def stepping(integrator, stepsize_controller):
         )
     adaptive = isinstance(stepsize_controller, diffrax.AbstractAdaptiveStepSizeController)
     if not isinstance(integrator, diffrax.AbstractSolver):
-        if not callable(getattr(integrator, "step", None)):
-            raise RequestError(f"rollout: integrator: expected RK4(), SemiImplicitEuler() or a diffrax solver, "
-                               f"got {integrator!r}")
+        fixed_step(integrator)
         if adaptive:
             raise RequestError(f"rollout: {type(integrator).__name__} takes fixed steps of dt; for adaptive steps "
                                "pass a diffrax solver, e.g. integrator=diffrax.Tsit5()")

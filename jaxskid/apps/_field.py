@@ -6,7 +6,9 @@ controller (``()`` if none), and
     dq/dt = qd,    dqd/dt = qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q)),    dz/dt = h(t, x, z),
 
 with ``x = (q, qd)`` concatenated ``(2n,)`` and ``tau`` from the controls: an array held constant over each
-step of a grid ``t_k = k dt``, a policy ``tau(t, x)`` or a :class:`Controller` ``(tau, dz/dt)(t, x, z)``.
+step of a grid ``t_k = k dt``, a policy ``tau(t, x)``, a :class:`Controller` ``(tau, dz/dt)(t, x, z)``, or a
+controller fed an input array held over each step (:class:`HeldInput`: ``(tau, dz/dt)(t, x, z, u_k)``, e.g. the
+voltages of :class:`jaxskid.DCMotors`).
 The accelerations are those of :func:`jaxskid.forward_dynamics` (:mod:`jaxskid.runtime._forward`).
 :func:`vector_field` gives the same system in diffrax's form, ``f(t, y, args)``.
 """
@@ -14,7 +16,7 @@ The accelerations are those of :func:`jaxskid.forward_dynamics` (:mod:`jaxskid.r
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -30,6 +32,7 @@ class Controller:
 
     ``__call__(t, x, z)`` returns ``(tau, dz/dt)``; :func:`rollout` integrates ``z`` with the robot.
     Stateless laws keep ``z = ()``. Subclasses are compared by identity (they are jit's static arguments).
+    A controller given inputs through :class:`HeldInput` is called as ``(t, x, z, u_k)``.
     """
 
     def init(self, x0: jax.Array) -> Any:
@@ -55,8 +58,24 @@ class _Policy(Controller):
         return hash((_Policy, id(self.fn)))
 
 
+class HeldInput(NamedTuple):
+    """A :class:`Controller` fed an input array ``(steps, n)`` (``(..., steps, n)``: one per rollout of a
+    batch) held over each step exactly as array torques are: every stage of a step sees ``u[k]``, and the
+    controller gives ``(tau, dz/dt) = controller(t, x, z, u_k)``. The array is an input of the compiled
+    rollout (a new one does not recompile; it can be batched and differentiated), not part of the controller.
+    """
+
+    controller: Controller
+    inputs: Any
+
+
 def as_controls(controls) -> tuple[Controller | None, jax.Array | None]:
-    """(controller, torque array): a :class:`Controller`, a policy ``tau(t, x)`` or an array."""
+    """(controller, array): a :class:`Controller`, a policy ``tau(t, x)``, a torque array (no controller), or
+    a :class:`HeldInput` (its controller and its input array)."""
+    if isinstance(controls, HeldInput):
+        if not isinstance(controls.controller, Controller):
+            raise RequestError(f"HeldInput: expected a jaxskid.Controller, got {type(controls.controller).__name__}")
+        return controls.controller, jnp.asarray(controls.inputs)
     if isinstance(controls, Controller):
         return controls, None
     if callable(controls):
@@ -66,18 +85,20 @@ def as_controls(controls) -> tuple[Controller | None, jax.Array | None]:
 
 def dynamics_field(dyn: Dynamics, controller: Controller | None, p: jax.Array, batched: bool,
                    autodiff: str = "forward") -> Callable:
-    """``f(t, y, u_k) -> (dy/dt, tau)`` for ``y = (q, qd, z)``; ``u_k`` is the held torque ``(n,)`` when the
-    controls are an array (else ``None``: the controller gives ``tau``). ``batched``: whether ``f`` will be
-    mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`); ``autodiff``: how the accelerations are
-    differentiated (:func:`jaxskid.runtime._implicit.differentiable`)."""
+    """``f(t, y, u_k) -> (dy/dt, tau)`` for ``y = (q, qd, z)``; ``u_k`` is the held row ``(n,)`` of an array:
+    the torque without a controller, the controller's input with one (:class:`HeldInput`); else ``None``.
+    ``batched``: whether ``f`` will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`);
+    ``autodiff``: how the accelerations are differentiated (:func:`jaxskid.runtime._implicit.differentiable`)."""
     qdd = accelerations(dyn, batched, autodiff)
 
     def f(t, y, u_k):
         q, qd, z = y
         if controller is None:
             tau, zdot = u_k, ()
-        else:
+        elif u_k is None:
             tau, zdot = controller(t, jnp.concatenate([q, qd]), z)
+        else:
+            tau, zdot = controller(t, jnp.concatenate([q, qd]), z, u_k)
         return (qd, qdd(q, qd, tau, p), zdot), tau
 
     return f
@@ -104,8 +125,8 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
         dyn: lowered with the quantities :func:`jaxskid.forward_dynamics` needs.
         controls: an array ``(steps, n)`` held constant over each step of the grid ``t_k = k dt``
             (``u[k]`` for ``t_k <= t < t_{k+1}``; pass the grid as ``jump_ts`` of a
-            ``diffrax.ClipStepSizeController`` so that steps stop at the jumps); a policy ``tau(t, x)``; or
-            a :class:`Controller`.
+            ``diffrax.ClipStepSizeController`` so that steps stop at the jumps); a policy ``tau(t, x)``; a
+            :class:`Controller`; or a :class:`HeldInput` (its inputs held over the same grid).
         params: as for :func:`jaxskid.forward_dynamics`: ``None``, a dict, or one vector ``(n_params,)``.
         dt: the grid's step in seconds; needed for (only for) array controls.
 
@@ -127,7 +148,7 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
     else:
         dtype = jnp.result_type(float)
     f = dynamics_field(dyn, controller, dyn.param_vector(params, dtype), batched=False)
-    stateful = isinstance(controls, Controller) and bool(
+    stateful = controller is not None and bool(
         jax.tree.leaves(jax.eval_shape(controller.init, jax.ShapeDtypeStruct((2 * n,), dtype)))
     )
 

@@ -9,11 +9,12 @@ of robots", J. Robotic Systems 8(4), 1991): with ``W P = Q R``, ``R = [[R1, R2],
 ``pi_b = pi_1 + R1^-1 R2 pi_2`` and ``Y pi = Y[:, P1] pi_b``.
 
 :func:`identify` estimates them with one of several methods: :class:`LeastSquares`,
-:class:`WeightedLeastSquares`, or :class:`GradientFit`, a gradient-descent fit of the standard parameters
-through any :class:`Parameterization` (e.g. :class:`LogCholesky`, physically consistent by construction,
-Rucker & Wensing, "Smooth parameterization of rigid-body inertia", RA-L 7(2), 2022). :func:`fit` minimises
-any differentiable loss, e.g. one through a lowered quantity (:func:`quantity_loss`) or through whole
-simulated trajectories (:func:`trajectory_loss`).
+:class:`WeightedLeastSquares`, :class:`PhysicallyConsistent` (least squares over the physically consistent
+standard parameters, :mod:`._consistent`), or :class:`GradientFit`, a gradient-descent fit of the standard
+parameters through a parameterization (:mod:`._parameterizations`; e.g. :class:`LogCholesky`, physically
+consistent by construction, Rucker & Wensing, "Smooth parameterization of rigid-body inertia", RA-L 7(2),
+2022). :func:`fit` minimises any differentiable loss, e.g. one through a lowered quantity
+(:func:`quantity_loss`) or through whole simulated trajectories (:func:`trajectory_loss`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ import scipy.linalg
 from .._errors import IdentificationError, IdentificationWarning, RequestError, ShapeError
 from ..runtime._dynamics import Dynamics
 from ..runtime._jit import jit
+from . import _consistent
 from ._integrators import RK4
+from ._parameterizations import LogCholesky, Standard, bounded, physically_consistent
 from ._simulate import Trajectory, rollout
 
 
@@ -163,19 +166,62 @@ class WeightedLeastSquares:
 
 @dataclass(frozen=True)
 class GradientFit:
-    """Gradient descent on ``mean |Y pi(theta) - tau|^2 + prior |pi(theta) - prior_pi|^2`` over a
-    :class:`Parameterization` of the standard parameters (``Y`` must be the full regressor, not reduced).
+    """Gradient descent on ``mean |Y pi(theta) - tau|^2 / mean |tau|^2 + prior |pi(theta) - init|^2`` over a
+    parameterization of the standard parameters (``Y`` must be the full regressor, not reduced).
 
-    ``init``: the standard parameters to start from (mapped to theta by the parameterization);
+    ``init``: the standard parameters to start from (mapped to theta by the parameterization), or
+    ``"lstsq"``: a least-squares warm start, made physically consistent for :class:`LogCholesky` (alternating
+    projections, as :class:`PhysicallyConsistent` starts);
+    ``parameterization``: :class:`Standard` (default) or :class:`LogCholesky`, whose drive bounds
+    ``Ia, fv, fc >= 0`` every step keeps (projected);
     ``optimizer``: any optax ``GradientTransformation`` (default ``optax.adam(1e-2)``);
     ``prior``: weight of a pull toward ``init`` that fixes the directions the data leave free.
+
+    For a physically consistent least-squares fit prefer :class:`PhysicallyConsistent`: on the Panda (43 base
+    parameters, consistent noisy data) it reaches the least-squares base parameters in 66 Levenberg-Marquardt
+    steps (0.2 s), where from the same warm start Adam stays 22 % (1500 steps, 1.6 s) or 14 % (5000 steps,
+    4.7 s) and L-BFGS 33 % (300 steps, 2.6 s) of the least-squares error away from them.
     """
 
-    init: Any
+    init: Any = "lstsq"
     parameterization: Any = None
     optimizer: Any = None
     steps: int = 2000
     prior: float = 0.0
+
+
+@dataclass(frozen=True)
+class PhysicallyConsistent:
+    """Least squares over the physically consistent standard parameters: ``min |W (Y pi - tau)|^2`` with every
+    body's pseudo-inertia positive definite (:class:`LogCholesky`) and each drive's ``Ia, fv, fc >= 0``
+    (``Y`` the full regressor, 10 columns per body then 4 per drive; ``W = diag(1 / sigma_j)``).
+
+    Where the least-squares base parameters are those of some consistent ``pi``, the fit reaches them (and
+    ``pi`` is one such vector); otherwise it finds the consistent ``pi`` that fits the data best.
+
+    The fit starts from the least-squares solution closest to ``init`` (standard parameters, e.g. the CAD
+    values; ``None``: the minimum-norm one), made consistent by ``projections`` alternating projections, then
+    takes at most ``steps`` Levenberg-Marquardt steps on the log-Cholesky numbers (:mod:`._consistent`).
+
+    Attributes:
+        drives: the number of driven joints (``len(robot.driven)``) whose 4 parameters end each row of ``Y``.
+        init: standard parameters whose unidentifiable part the estimate keeps, or ``None``.
+        sigma: the joints' noise standard deviations ``(n,)`` or a scalar (weights ``1 / sigma``; default 1: all
+            joints alike), or ``"estimate"`` (or ``None``): from the residuals of ordinary least squares, as
+            :class:`WeightedLeastSquares` does.
+        prior: weight of ``|pi - init|^2`` (relative to the best-determined direction of the data); 0 leaves the
+            unidentifiable part where the start put it.
+        steps: the most Levenberg-Marquardt steps; tol: stop when a step lowers the loss by less than ``tol``
+            times the loss.
+    """
+
+    drives: int = 0
+    init: Any = None
+    sigma: Any = 1.0
+    prior: float = 0.0
+    steps: int = 500
+    projections: int = 100
+    tol: float = 1e-10
 
 
 class Estimate(NamedTuple):
@@ -214,16 +260,28 @@ def identify(y, tau, method=LeastSquares(), *, names: Sequence[str] = ()) -> Est
     s, n, p = y.shape
     if isinstance(method, GradientFit):
         return _gradient_fit(y, tau, method)
+    if isinstance(method, PhysicallyConsistent):
+        return _consistent_fit(y, tau, method)
     if isinstance(method, WeightedLeastSquares):
-        if method.sigma is None:
-            first = _lstsq(y, tau, np.ones(n), names)
-            sigma = first.residual_std
-        else:
-            sigma = np.broadcast_to(np.asarray(method.sigma, dtype=float), (n,))
-        return _lstsq(y, tau, 1.0 / sigma, names)
+        return _lstsq(y, tau, 1.0 / _joint_sigma(y, tau, method.sigma), names)
     if isinstance(method, LeastSquares):
         return _lstsq(y, tau, np.ones(n), names)
-    raise RequestError(f"identify: unknown method {method!r}; expected LeastSquares, WeightedLeastSquares or GradientFit")
+    raise RequestError(f"identify: unknown method {method!r}; expected LeastSquares, WeightedLeastSquares, "
+                       "GradientFit or PhysicallyConsistent")
+
+
+def _joint_sigma(y, tau, sigma) -> np.ndarray:
+    """The joints' noise standard deviations ``(n,)``: given, or (``None`` / ``"estimate"``) those of the
+    ordinary least-squares residuals, floored at 1e-9 of the largest so that a joint fitted exactly does not
+    take all the weight."""
+    n = y.shape[1]
+    if sigma is None or (isinstance(sigma, str) and sigma == "estimate"):
+        sigma = _consistent.least_squares_std(y, tau)
+        return np.maximum(sigma, 1e-9 * sigma.max()) if sigma.max() > 0 else np.ones(n)
+    sigma = np.asarray(sigma, dtype=float)
+    if sigma.ndim > 1 or sigma.size not in (1, n) or not np.all(sigma > 0):
+        raise RequestError(f"identify: sigma must be a positive scalar or {n} positive values, got {sigma}")
+    return np.broadcast_to(sigma, (n,))
 
 
 def _lstsq(y, tau, weight, names: Sequence[str] = ()) -> Estimate:
@@ -237,8 +295,7 @@ def _lstsq(y, tau, weight, names: Sequence[str] = ()) -> Estimate:
     theta = np.empty(p)
     theta[perm] = scipy.linalg.solve_triangular(rm, qm.T @ b)
     res = (tau - np.einsum("snp,p->sn", y, theta))
-    dof = (s * n - p) / (s * n)
-    residual_std = np.sqrt(np.mean(res * res, axis=0) / dof)
+    residual_std = _consistent.joint_residual_std(res, np.sum(qm * qm, axis=1).reshape(s, n))
     sigma2 = np.sum((res * weight[None, :]) ** 2) / (s * n - p)
     rinv = np.zeros((p, p))
     rinv[perm] = scipy.linalg.solve_triangular(rm, np.eye(p))
@@ -282,7 +339,17 @@ def _check_rank(r: np.ndarray, perm: np.ndarray, names: Sequence[str]) -> None:
 
 def _gradient_fit(y, tau, method: GradientFit) -> Estimate:
     par = method.parameterization or Standard()
-    init = jnp.asarray(method.init, dtype=float)
+    low = par.lower_bounds(y.shape[2]) if hasattr(par, "lower_bounds") else np.full(y.shape[2], -np.inf)
+    init = method.init
+    if isinstance(init, str):
+        if init != "lstsq":
+            raise RequestError(f"GradientFit: init must be standard parameters or 'lstsq', got {init!r}")
+        red = _consistent.reduce(y, tau, np.ones(y.shape[1]))
+        init = (_consistent.consistent_start(red, par.drives) if isinstance(par, LogCholesky)
+                else np.maximum(_consistent.least_squares_near(red, np.zeros(y.shape[2])), low))
+    init = jnp.asarray(init, dtype=float)
+    if init.shape != (y.shape[2],):
+        raise ShapeError(f"GradientFit: init has shape {init.shape}; expected ({y.shape[2]},), one per column of y")
     yj, tj = jnp.asarray(y), jnp.asarray(tau)
     scale = 1.0 / jnp.mean(tj * tj)
 
@@ -291,113 +358,28 @@ def _gradient_fit(y, tau, method: GradientFit) -> Estimate:
         r = jnp.einsum("snp,p->sn", yj, pi) - tj
         return scale * jnp.mean(r * r) + method.prior * jnp.sum((pi - init) ** 2)
 
-    result = fit(loss, par.init(init), optimizer=method.optimizer, steps=method.steps)
+    optimizer = bounded(method.optimizer or optax.adam(1e-2), low)
+    result = fit(loss, par.init(init), optimizer=optimizer, steps=method.steps)
     pi = np.asarray(par.standard(result.theta))
     res = tau - np.einsum("snp,p->sn", y, pi)
     return Estimate(pi, None, np.sqrt(np.mean(res * res, axis=0)), np.asarray(result.history))
 
 
-# ---------------------------------------------------------------------------------------- parameterizations
-@dataclass(frozen=True)
-class Standard:
-    """theta = pi: the standard parameters themselves (no physical-consistency constraint)."""
-
-    def init(self, pi):
-        return jnp.asarray(pi)
-
-    def standard(self, theta):
-        return theta
-
-
-@dataclass(frozen=True)
-class LogCholesky:
-    """Per body, 10 unconstrained numbers ``theta = (alpha, d1, d2, d3, s12, s23, s13, t1, t2, t3)`` that
-    map onto every physically consistent inertia and only those (Rucker & Wensing 2022, eq. 9):
-
-        J = U U^T,  U = e^alpha [[e^d1, s12, s13, t1], [0, e^d2, s23, t2], [0, 0, e^d3, t3], [0, 0, 0, 1]],
-
-    with the pseudo-inertia ``J = [[Sigma, h], [h^T, m]]``, ``Sigma = tr(I)/2 1 - I``, ``h = m c``
-    (Wensing, Kim & Slotine, RA-L 3(1), 2017). ``J`` positive definite is equivalent to positive mass and
-    the triangle inequalities of the inertia about the centre of mass.
-
-    ``drives``: the number of driven joints, whose 4 standard parameters ``(Ia, fv, fc, fo)`` each follow the
-    bodies' (``len(robot.driven)``); they pass through unchanged (theta = pi there, not constrained).
-    """
-
-    drives: int = 0
-
-    def standard(self, theta):
-        """``(..., 10 k + 4 drives)`` log-Cholesky numbers (then drive parameters) -> standard parameters."""
-        th, rest = _split_drives(theta, self.drives)
-        pi = _pseudo_to_standard(_log_cholesky_to_pseudo(th.reshape((*th.shape[:-1], -1, 10))))
-        return jnp.concatenate([pi.reshape(th.shape), rest], axis=-1)
-
-    def init(self, pi):
-        """Standard parameters (physically consistent, ``J`` positive definite) -> log-Cholesky numbers."""
-        pi, rest = _split_drives(jnp.asarray(pi), self.drives)
-        j = _standard_to_pseudo(pi.reshape((*pi.shape[:-1], -1, 10)))
-        # U upper triangular with J = U U^T: reverse the order, take the lower Cholesky factor, reverse back.
-        u = jnp.flip(jnp.linalg.cholesky(jnp.flip(j, (-2, -1))), (-2, -1))
-        alpha = jnp.log(u[..., 3, 3])
-        v = u / u[..., 3:4, 3:4]
-        th = jnp.stack(
-            [alpha, jnp.log(v[..., 0, 0]), jnp.log(v[..., 1, 1]), jnp.log(v[..., 2, 2]),
-             v[..., 0, 1], v[..., 1, 2], v[..., 0, 2], v[..., 0, 3], v[..., 1, 3], v[..., 2, 3]], axis=-1)
-        return jnp.concatenate([th.reshape(pi.shape), rest], axis=-1)
-
-
-def _split_drives(x, drives: int):
-    """``(x[..., :10 k], x[..., 10 k:])``: the bodies' standard parameters and the ``4 drives`` after them."""
-    cut = x.shape[-1] - 4 * drives
-    if cut < 0 or cut % 10:
-        raise ShapeError(f"expected 10 entries per body and then 4 per drive ({drives} drives), got {x.shape[-1]}")
-    return x[..., :cut], x[..., cut:]
-
-
-def _log_cholesky_to_pseudo(th):
-    alpha, d1, d2, d3, s12, s23, s13, t1, t2, t3 = (th[..., k] for k in range(10))
-    zero, one = jnp.zeros_like(alpha), jnp.ones_like(alpha)
-    u = jnp.stack([
-        jnp.stack([jnp.exp(d1), s12, s13, t1], -1),
-        jnp.stack([zero, jnp.exp(d2), s23, t2], -1),
-        jnp.stack([zero, zero, jnp.exp(d3), t3], -1),
-        jnp.stack([zero, zero, zero, one], -1),
-    ], -2) * jnp.exp(alpha)[..., None, None]
-    return u @ jnp.swapaxes(u, -1, -2)
-
-
-def _eye3(like):
-    return jnp.eye(3, dtype=like.dtype).reshape((1,) * like.ndim + (3, 3))
-
-
-def _pseudo_to_standard(j):
-    sigma = j[..., :3, :3]
-    tr = jnp.trace(sigma, axis1=-2, axis2=-1)
-    inertia = tr[..., None, None] * _eye3(tr) - sigma
-    return jnp.stack([
-        j[..., 3, 3], j[..., 0, 3], j[..., 1, 3], j[..., 2, 3],
-        inertia[..., 0, 0], inertia[..., 0, 1], inertia[..., 1, 1], inertia[..., 0, 2], inertia[..., 1, 2], inertia[..., 2, 2],
-    ], axis=-1)
-
-
-def _standard_to_pseudo(pi):
-    m, hx, hy, hz, ixx, ixy, iyy, ixz, iyz, izz = (pi[..., k] for k in range(10))
-    inertia = jnp.stack([jnp.stack([ixx, ixy, ixz], -1), jnp.stack([ixy, iyy, iyz], -1), jnp.stack([ixz, iyz, izz], -1)], -2)
-    tr = (ixx + iyy + izz) / 2
-    sigma = tr[..., None, None] * _eye3(tr) - inertia
-    h = jnp.stack([hx, hy, hz], -1)
-    top = jnp.concatenate([sigma, h[..., :, None]], axis=-1)
-    bottom = jnp.concatenate([h, m[..., None]], axis=-1)[..., None, :]
-    return jnp.concatenate([top, bottom], axis=-2)
-
-
-def physically_consistent(pi, tol: float = 0.0, drives: int = 0) -> np.ndarray:
-    """Per body, whether the pseudo-inertia of the standard parameters ``pi (..., 10 k + 4 drives)`` is
-    positive definite (smallest eigenvalue ``> tol``): shape ``(..., k)``. ``drives``: the number of driven
-    joints (``len(robot.driven)``) whose parameters end ``pi``; they are not checked here."""
-    pi, _ = _split_drives(jnp.asarray(pi), drives)
-    j = _standard_to_pseudo(pi.reshape((*pi.shape[:-1], -1, 10)))
-    return np.asarray(jnp.linalg.eigvalsh(j)[..., 0] > tol)
+def _consistent_fit(y, tau, method: PhysicallyConsistent) -> Estimate:
+    if method.init is not None and np.shape(method.init) != (y.shape[2],):
+        raise ShapeError(f"PhysicallyConsistent: init has shape {np.shape(method.init)}; expected ({y.shape[2]},), "
+                         "one per column of y")
+    weight = 1.0 / _joint_sigma(y, tau, method.sigma)
+    red = _consistent.reduce(y, tau, weight)
+    start = _consistent.consistent_start(red, method.drives, method.init, method.projections)
+    par = LogCholesky(drives=method.drives)
+    theta0 = _consistent.log_cholesky_init(start, drives=method.drives)
+    out = _consistent.consistent_fit(red, method.drives, theta0, prior=method.prior, reference=method.init,
+                                     steps=method.steps, tol=method.tol)
+    pi = np.asarray(par.standard(out.theta))
+    res = tau - np.einsum("snp,p->sn", y, pi)
+    history = np.asarray(out.history)[: int(out.steps)]
+    return Estimate(pi, None, np.sqrt(np.mean(res * res, axis=0)), history)
 
 
 # ---------------------------------------------------------------------------------------- gradient fits
@@ -425,9 +407,10 @@ def fit(loss: Callable, theta0, *, optimizer: optax.GradientTransformation | Non
     """Minimise a differentiable ``loss(theta)`` from ``theta0`` (any pytree) with ``jax.grad``.
 
     ``optimizer``: any optax ``GradientTransformation`` (default ``optax.adam(1e-2)``; :func:`Adam` and
-    :func:`GradientDescent` are shorthands). The steps run in one compiled ``lax.scan``.
+    :func:`GradientDescent` are shorthands), also those with a line search such as ``optax.lbfgs()`` (each
+    update gets ``value``, ``grad`` and ``value_fn``). The steps run in one compiled ``lax.scan``.
     """
-    optimizer = optimizer or optax.adam(1e-2)
+    optimizer = optax.with_extra_args_support(optimizer or optax.adam(1e-2))
     value_and_grad = jax.value_and_grad(loss)
 
     @jit
@@ -435,7 +418,7 @@ def fit(loss: Callable, theta0, *, optimizer: optax.GradientTransformation | Non
         def step(carry, _):
             theta, state = carry
             value, grads = value_and_grad(theta)
-            updates, state = optimizer.update(grads, state, theta)
+            updates, state = optimizer.update(grads, state, theta, value=value, grad=grads, value_fn=loss)
             return (optax.apply_updates(theta, updates), state), value
 
         (theta, _), history = jax.lax.scan(step, (theta0, optimizer.init(theta0)), None, length=steps)

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
+from .._errors import RequestError
+
 
 @dataclass(frozen=True)
 class SemiImplicitEuler:
@@ -66,3 +68,12 @@ class RK4:
         cb = (jnp.asarray([0.0, 0.5, 0.5, 1.0], dtype), jnp.asarray([1 / 6, 1 / 3, 1 / 3, 1 / 6], dtype))
         (_, incr), aux = jax.lax.scan(stage, (zero, zero), cb)
         return axpy(dt, incr, y), jax.tree.map(lambda a: a[0], aux)
+
+
+def fixed_step(integrator):
+    """``integrator``, checked to be a fixed-step integrator of this module's kind (any object with
+    ``step(f, t, y, dt)``)."""
+    if not callable(getattr(integrator, "step", None)):
+        raise RequestError(f"rollout: integrator: expected RK4(), SemiImplicitEuler() or a diffrax solver, "
+                           f"got {integrator!r}")
+    return integrator

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from functools import partial
+import sys
 from typing import Any, NamedTuple
 
 import jax
@@ -26,9 +27,8 @@ from ..runtime._dynamics import Dynamics
 from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
 from ..runtime._jit import jit, traced
-from ._diffrax import Adaptive, adaptive_rollout, stepping
 from ._field import as_controls, dynamics_field
-from ._integrators import RK4
+from ._integrators import RK4, fixed_step
 from ._loop import saved_loop
 from ._saving import Checkpoint, SaveAt
 
@@ -71,12 +71,13 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
     f = dynamics_field(dyn, controller, p, batched, autodiff)
     z0 = controller.init(x0) if controller is not None else ()
     tau0 = jnp.zeros((n,), x0.dtype)
-    if isinstance(integrator, Adaptive):
+    if getattr(integrator, "adaptive", False):  # a diffrax solver with an adaptive controller
         y0 = (x0[:n], x0[n:], z0)
-        (x, z), tau = adaptive_rollout(integrator, f, _observe, y0, u, dt, steps, saveat, index, checkpoint, tau0)
+        (x, z), tau = integrator.run(f, _observe, y0, u, dt, steps, saveat, index, checkpoint, tau0)
         return x, tau, z
 
-    record = u is None and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
+    rows = controller is None and u is not None  # the torques are the rows of u
+    record = not rows and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
 
     def step(carry, u_k):
         k, q, qd, z = carry
@@ -88,7 +89,7 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
     (x, z), tau = saved_loop(saveat, step, lambda c: _observe(c[1:]), carry0, u, steps, index, block,
                              tau0 if record else ())
     if not record:  # array torques are the rows of u; only the final state saved: none
-        tau = jnp.zeros((0, n), x0.dtype) if u is None else _held_rows(u, saveat, steps, index)
+        tau = _held_rows(u, saveat, steps, index) if rows else jnp.zeros((0, n), x0.dtype)
     return x, tau, z
 
 
@@ -169,9 +170,9 @@ def rollout(
         dyn: lowered with the quantities :func:`forward_dynamics` needs.
         x0: initial state ``(2n,)``, or ``(..., 2n)`` for a batch of rollouts.
         controls: the torques: an array ``(steps, n)`` held constant over each step (``(..., steps, n)``:
-            one sequence per rollout of a batch); a policy ``tau = policy(t, x)``; or a
-            :class:`Controller` (``(tau, dz/dt) = controller(t, x, z)``), whose state is integrated too.
-            Policies and controllers are evaluated at every stage of the integrator.
+            one sequence per rollout of a batch); a policy ``tau = policy(t, x)``; a :class:`Controller` (``(tau,
+            dz/dt) = controller(t, x, z)``, ``z`` integrated too); or a :class:`HeldInput`: a controller fed an
+            array held like torques (:meth:`DCMotors.drive`'s voltages). All are evaluated at every stage.
         dt: the step in seconds, a scalar, or one per rollout of a batch (its batch axes broadcast against
             those of ``x0``; ``steps`` is shared).
         steps: the number of steps (a Python int); the rollout ends at ``steps * dt``.
@@ -205,7 +206,7 @@ def rollout(
     steps = _steps(steps)
     saveat = SaveAt() if saveat is None else saveat
     _check_choices(saveat, checkpoint)
-    integrator = stepping(integrator, stepsize_controller)
+    integrator = _stepping(integrator, stepsize_controller)
     controller, u = as_controls(controls)
     arrays, dtype = float_arrays([x0] if u is None else [x0, u])
     x0, u = arrays[0], (arrays[1] if u is not None else None)
@@ -228,6 +229,15 @@ def rollout(
     devices = tuple(devices) if devices is not None else tuple(jax.local_devices())
     devices = devices[:max(1, min(len(devices), size))]
     return _rollout_batch(*static, batch, devices, x0, p, u, dt, index)
+
+
+def _stepping(integrator, stepsize_controller):
+    """The rollout's integrator, checked; diffrax is imported only when a diffrax object may be involved."""
+    if stepsize_controller is None and "diffrax" not in sys.modules:  # then no diffrax solver exists here
+        return fixed_step(integrator)
+    from ._diffrax import stepping
+
+    return stepping(integrator, stepsize_controller)
 
 
 def _steps(steps) -> int:

@@ -142,7 +142,7 @@ class Layout:
         the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav)."""
         r = self.robot
         quantities = {n: self.eqs.quantities[n] for n in self.names}
-        driven = {"driven": [r.joint_names[i] for i in r.driven]} if r.driven else {}
+        driven = {"driven": [r.joints[i].name for i in r.driven]} if r.driven else {}
         return {
             "robot": r.name,
             "joint_names": list(r.joint_names),

@@ -13,7 +13,7 @@ from ..model._robot import Robot, symbol
 
 def _tree(robot) -> dict[int, list[tuple[str, int | str]]]:
     """Children of every body (-1: the base): ("body", index) or ("frame", name), in model order."""
-    children: dict[int, list] = {i: [] for i in range(-1, robot.n_dof)}
+    children: dict[int, list] = {i: [] for i in range(-1, robot.n_bodies)}
     for i, j in enumerate(robot.joints):
         children[j.parent].append(("body", i))
     for f in robot.frames:
@@ -51,7 +51,8 @@ def describe(robot: Robot) -> str:
     rows = []
     for i, j in enumerate(robot.joints):
         parent = robot.base if j.parent < 0 else robot.joints[j.parent].link
-        rows.append((i + 1, j.name, j.type, parent, j.link, "(" + ", ".join(value(x, "{:.4g}") for x in j.screw) + ")"))
+        kind = j.type if j.mimic is None else f"{j.type} (mimics {j.mimic.joint})"
+        rows.append((i + 1, j.name, kind, parent, j.link, "(" + ", ".join(value(x, "{:.4g}") for x in j.screw) + ")"))
     lines += _table(("#", "joint", "type", "parent body", "body", "screw (omega, v), body frame"), rows)
     lines += ["", "bodies (at the default parameters)"]
     rows = []

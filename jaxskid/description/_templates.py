@@ -13,6 +13,11 @@ derives and lowers with no edits. Two forms of the kinematics:
   row is ``d = L<i>, alpha = theta = pi/2`` (so that consecutive prismatic joints slide along perpendicular
   axes: PPP is a Cartesian robot). Link i is the segment from DH origin i-1 to origin i, with its centre of
   mass in the middle; the end-effector is DH frame n.
+
+With ``drives=True`` (``jaxskid template --drives``) every joint also has a drive (:class:`~jaxskid.Drive`,
+the ``drives:`` key of :mod:`._yaml_drives`): ``Ia qdd + fv qd + fc sign(qd) + fo`` added to its force, with
+the parameters ``joint<i>_Ia, joint<i>_fv, joint<i>_fc, joint<i>_fo`` (the names ``jaxskid.load(...,
+drives=True)`` gives) and defaults among the assignments; a Python template calls ``Robot.with_drives``.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import re
 import sympy as sp
 
 from .._errors import RequestError
+from ..model._drive import drive_parameter_names
 
 FORMATS = ("yaml", "json", "py")
 KINEMATICS = ("screws", "dh")
@@ -60,8 +66,28 @@ def _assignments(n: int) -> dict[str, float]:
     return values
 
 
-def template_data(structure: str, name: str | None = None) -> dict:
-    """The template as a description mapping (Skidy's schema, body-fixed representation)."""
+DRIVE_DEFAULTS = {"Ia": 0.01, "fv": 0.1, "fc": 0.05, "fo": 0.0}
+"""A template drive's default armature (kg m^2; kg for a prismatic joint), viscous friction (N m s; N s/m),
+Coulomb friction (N m; N) and torque offset (N m; N), by the suffix of its parameter names."""
+
+
+def _flag(drives: bool) -> str:
+    return " --drives" if drives else ""
+
+
+def _with_drives(data: dict) -> dict:
+    """``data`` with a ``drives`` list (one drive of named parameters per joint) and their defaults."""
+    entries, values = [], {}
+    for joint in data["joint_names"]:
+        names = dict(zip(("armature", "viscous", "coulomb", "offset"), drive_parameter_names(joint)))
+        entries.append(names)
+        values.update({name: DRIVE_DEFAULTS[name.rsplit("_", 1)[1]] for name in names.values()})
+    return {**data, "drives": entries, "assignments": {**data["assignments"], **values}}
+
+
+def template_data(structure: str, name: str | None = None, drives: bool = False) -> dict:
+    """The template as a description mapping (Skidy's schema, body-fixed representation); with ``drives``, a
+    drive per joint (module docstring)."""
     joints = _joints(structure)
     n = len(joints)
     data: dict = {"name": name or structure.lower(), "representation": "body_fixed", "gravity": [0, 0, "-g"]}
@@ -77,19 +103,19 @@ def template_data(structure: str, name: str | None = None) -> dict:
         for j in joints
     ]
     data["assignments"] = _assignments(n)
-    return data
+    return _with_drives(data) if drives else data
 
 
 def _flow(values) -> str:
     return "[" + ", ".join(str(v) for v in values) + "]"
 
 
-def _yaml(structure: str, name: str | None) -> str:
-    data = template_data(structure, name)
+def _yaml(structure: str, name: str | None, drives: bool = False) -> str:
+    data = template_data(structure, name, drives)
     joints = _joints(structure)
     n = len(joints)
     lines = [
-        f"# {structure.upper()} robot: template written by `jaxskid template -S {structure.upper()}`.",
+        f"# {structure.upper()} robot: template written by `jaxskid template{_flag(drives)} -S {structure.upper()}`.",
         "# Skidy's YAML schema (body-fixed representation): edit the geometry and the assignments, then",
         "#   jaxskid info this.yaml        # joints, bodies, parameters, tree",
         "#   jaxskid generate this.yaml    # derive, lower, self-check, write code",
@@ -115,27 +141,45 @@ def _yaml(structure: str, name: str | None) -> str:
 
 
 def _yaml_inertias_and_assignments(data: dict) -> list[str]:
-    """The ``mass_inertia`` entries (after their key) and the ``assignments`` block, as YAML lines."""
+    """The ``mass_inertia`` entries (after their key), the ``drives`` block if any and the ``assignments``
+    block, as YAML lines."""
     lines = [f"  - {{mass: {m['mass']}, com: {_flow(m['com'])}, inertia: {_flow(m['inertia'])}, frame: {m['frame']}}}"
              for m in data["mass_inertia"]]
+    if "drives" in data:
+        lines += ["", "drives:                          # per joint (null: none): Ia qdd + fv qd + fc sign(qd) + fo "
+                  "added to its force;",
+                  "                                 # armature may be given as gear_ratio and rotor_inertia "
+                  "(gear_ratio^2 rotor_inertia)"]
+        lines += ["  - {" + ", ".join(f"{key}: {value}" for key, value in d.items()) + "}" for d in data["drives"]]
     lines += ["", "assignments:                     # default values of the parameters (SI units)"]
     return lines + [f"  {key}: {value}" for key, value in data["assignments"].items()]
 
 
-def _json(structure: str, name: str | None) -> str:
-    return json.dumps(template_data(structure, name), indent=2) + "\n"
+def _json(structure: str, name: str | None, drives: bool = False) -> str:
+    return json.dumps(template_data(structure, name, drives), indent=2) + "\n"
 
 
-def _dh_json(structure: str, name: str | None) -> str:
-    return json.dumps(dh_template_data(structure, name), indent=2) + "\n"
+def _dh_json(structure: str, name: str | None, drives: bool = False) -> str:
+    return json.dumps(dh_template_data(structure, name, drives), indent=2) + "\n"
 
 
-def _python(structure: str, name: str | None) -> str:
+def _python_drives(data: dict) -> list[str]:
+    """The lines that give every joint of a Python template's ``robot`` its drive (``Robot.with_drives``)."""
+    if "drives" not in data:
+        return []
+    values = {p: data["assignments"][p] for d in data["drives"] for p in d.values()}
+    return ["",
+            "# Drives: Ia qdd + fv qd + fc sign(qd) + fo added to each joint's force (armature Ia, viscous and Coulomb",
+            "# friction fv and fc, offset fo), with the parameters <joint>_Ia, <joint>_fv, <joint>_fc, <joint>_fo.",
+            f"robot = robot.with_drives({values!r})"]
+
+
+def _python(structure: str, name: str | None, drives: bool = False) -> str:
     joints = _joints(structure)
     n = len(joints)
-    data = template_data(structure, name)
+    data = template_data(structure, name, drives)
     lines = [
-        f'"""{structure.upper()} robot: template written by `jaxskid template -S {structure.upper()}`.',
+        f'"""{structure.upper()} robot: template written by `jaxskid template{_flag(drives)} -S {structure.upper()}`.',
         "",
         "Edit the geometry and the defaults, then run it (derives, lowers and prints M at q = 0), or use it",
         "wherever jaxskid's command line takes a robot: `jaxskid info this.py`, `jaxskid generate this.py`;",
@@ -173,10 +217,15 @@ def _python(structure: str, name: str | None) -> str:
         "    gravity=(0, 0, -g),",
         f"    frames=[Frame('ee', {n - 1}, pose(translation=(L{n}, 0, 0)))],",
         "    end_effectors=['ee'],",
-        f"    defaults={data['assignments']!r},",
+        f"    defaults={_inertial(data['assignments'])!r},",
         ")",
     ]
-    return "\n".join(lines + _PYTHON_MAIN)
+    return "\n".join(lines + _python_drives(data) + _PYTHON_MAIN)
+
+
+def _inertial(values: dict) -> dict:
+    """The assignments without the drives' parameters (a Python template gives those to ``with_drives``)."""
+    return {k: v for k, v in values.items() if k.rsplit("_", 1)[-1] not in DRIVE_DEFAULTS}
 
 
 _PYTHON_MAIN = [
@@ -269,8 +318,9 @@ def _value(e):
     return int(e) if sp.sympify(e).is_Integer else str(e)
 
 
-def dh_template_data(structure: str, name: str | None = None) -> dict:
-    """The DH template as a description mapping (a ``dh:`` table in the standard convention)."""
+def dh_template_data(structure: str, name: str | None = None, drives: bool = False) -> dict:
+    """The DH template as a description mapping (a ``dh:`` table in the standard convention); with
+    ``drives``, a drive per joint (module docstring)."""
     links = _dh_links(structure)
     data: dict = {"name": name or structure.lower(), "gravity": [0, 0, "-g"]}
     data["joint_names"] = [f"joint{link['k']}" for link in links]
@@ -286,14 +336,14 @@ def dh_template_data(structure: str, name: str | None = None) -> dict:
         for link in links for k in [link["k"]]
     ]
     data["assignments"] = _dh_assignments(links)
-    return data
+    return _with_drives(data) if drives else data
 
 
-def _dh_yaml(structure: str, name: str | None) -> str:
-    data = dh_template_data(structure, name)
+def _dh_yaml(structure: str, name: str | None, drives: bool = False) -> str:
+    data = dh_template_data(structure, name, drives)
     letters = structure.upper()
     lines = [
-        f"# {letters} robot: template written by `jaxskid template --dh -S {letters}`.",
+        f"# {letters} robot: template written by `jaxskid template --dh{_flag(drives)} -S {letters}`.",
         "# A Denavit-Hartenberg table; edit it and the assignments, then",
         "#   jaxskid info this.yaml        # joints, bodies, parameters, tree",
         "#   jaxskid generate this.yaml    # derive, lower, self-check, write code",
@@ -318,12 +368,12 @@ def _dh_yaml(structure: str, name: str | None) -> str:
     return "\n".join(lines + _yaml_inertias_and_assignments(data)) + "\n"
 
 
-def _dh_python(structure: str, name: str | None) -> str:
+def _dh_python(structure: str, name: str | None, drives: bool = False) -> str:
     links = _dh_links(structure)
-    data = dh_template_data(structure, name)
+    data = dh_template_data(structure, name, drives)
     letters, n = structure.upper(), len(links)
     lines = [
-        f'"""{letters} robot: template written by `jaxskid template --dh -S {letters}`.',
+        f'"""{letters} robot: template written by `jaxskid template --dh{_flag(drives)} -S {letters}`.',
         "",
         "A Denavit-Hartenberg table in the standard convention: frame i = frame i-1 Rz(theta) Tz(d) Tx(a) Rx(alpha),",
         "the joint variable added to theta (revolute) or d (prismatic); body i's frame is DH frame i. Edit the",
@@ -359,12 +409,13 @@ def _dh_python(structure: str, name: str | None) -> str:
         f"                 link_names={data['link_names']!r},",
         f"                 frames=[Frame('ee', {n - 1}, pose())],  # the end-effector: DH frame n",
         "                 end_effectors=['ee'],",
-        f"                 defaults={data['assignments']!r})",
+        f"                 defaults={_inertial(data['assignments'])!r})",
     ]
-    return "\n".join(lines + _PYTHON_MAIN)
+    return "\n".join(lines + _python_drives(data) + _PYTHON_MAIN)
 
 
-def render_template(structure: str, fmt: str, *, name: str | None = None, kinematics: str = "screws") -> str:
+def render_template(structure: str, fmt: str, *, name: str | None = None, kinematics: str = "screws",
+                    drives: bool = False) -> str:
     """The text of a robot template.
 
     Args:
@@ -373,6 +424,7 @@ def render_template(structure: str, fmt: str, *, name: str | None = None, kinema
         name: the robot's name (default: the structure in lower case).
         kinematics: ``"screws"`` (``joint_screw_coord`` and ``body_ref_config``) or ``"dh"`` (a
             Denavit–Hartenberg table, ``jaxskid.dh_robot`` in Python).
+        drives: give every joint a drive of named parameters with defaults (module docstring).
     """
     if fmt not in FORMATS:
         raise RequestError(f"unknown template format {fmt!r}; expected one of {', '.join(FORMATS)}")
@@ -381,5 +433,5 @@ def render_template(structure: str, fmt: str, *, name: str | None = None, kinema
     if name is not None and not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", name):
         raise RequestError(f"expected a robot name of letters, digits, _ and -, got {name!r}")
     if kinematics == "dh":
-        return {"yaml": _dh_yaml, "json": _dh_json, "py": _dh_python}[fmt](structure, name)
-    return {"yaml": _yaml, "json": _json, "py": _python}[fmt](structure, name)
+        return {"yaml": _dh_yaml, "json": _dh_json, "py": _dh_python}[fmt](structure, name, drives)
+    return {"yaml": _yaml, "json": _json, "py": _python}[fmt](structure, name, drives)

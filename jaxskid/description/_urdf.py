@@ -19,32 +19,34 @@ Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/par
 * a link without ``<inertial>`` is massless;
 * with ``drives``, every moving joint gets a drive whose viscous and Coulomb friction default to its
   ``<dynamics damping friction>`` (which Pinocchio stores but no algorithm of it uses);
-* a ``<mimic>`` joint is read as an independent joint, as Pinocchio does by default (``mimic=False``);
-  a warning is logged, and locking it removes it.
+* a ``<mimic>`` joint is read as an independent joint, as Pinocchio's default, with a warning naming
+  ``mimic=True``; with ``mimic=True`` it follows its joint (:mod:`jaxskid.model._mimic`), as Pinocchio's
+  ``buildModelFromUrdf(path, mimic=True)``. A ``<mimic>`` on a fixed joint is ignored.
+* a joint's ``<limit>`` becomes its :class:`~jaxskid.JointLimits` (:mod:`._urdf_limits`; metadata only).
 """
 
 from __future__ import annotations
 
 import io
-import logging
 import math
 import os
 import re
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
 import sympy as sp
 
-from .._errors import ModelError
+from .._errors import DescriptionWarning, ModelError
 from ..model import _lie as lie
 from ..model._fixed import lock_joint, merge_fixed
 from ..model._drive import Drive, drive_parameter_names
+from ..model._mimic import Mimic, follow_locks, resolve
 from ..model._robot import Joint, Robot, symbol
 from ..model._validate import check_mass, check_positive_semidefinite
 from ._keymap import KeyMap
-
-_logger = logging.getLogger(__name__)
+from ._urdf_limits import NUMERIC_JOINT_ATTRIBUTES, joint_limits
 
 _JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed"}
 _SUPPORTED = ", ".join(_JOINT_TYPES)
@@ -59,6 +61,7 @@ def read_urdf(
     gravity: Sequence = (0, 0, -9.81),
     end_effectors: Sequence[str] | None = None,
     drives: bool = False,
+    mimic: bool = False,
 ) -> Robot:
     """Build a :class:`Robot` from the URDF file ``path``.
 
@@ -75,10 +78,12 @@ def read_urdf(
             those welded to the world (their Jacobian is zero).
         drives: if True, every moving joint ``J`` gets a drive (:class:`~jaxskid.model._drive.Drive`) with
             the parameters ``J_Ia, J_fv, J_fc, J_fo``, defaults ``0, damping, friction, 0`` from the joint's
-            ``<dynamics>`` (0 without it).
+            ``<dynamics>`` (0 without it), mimic joints included (acting through the coupling).
+        mimic: couple ``<mimic joint="j" multiplier="a" offset="b"/>`` joints, ``q = a q_j + b`` (else they
+            are independent joints, with a :class:`~jaxskid.DescriptionWarning`).
 
     Returns:
-        the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints not locked.
+        the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints, not locked or mimic.
 
     Raises:
         ModelError: ``"<path>: <key path>: expected ..., got ..."`` for an unreadable or malformed file,
@@ -87,22 +92,25 @@ def read_urdf(
     """
     source = os.fspath(path)
     try:
-        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives)
+        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic)
     except ModelError as err:
         raise err.located(source=source) from None
 
 
-def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives) -> Robot:
+def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic) -> Robot:
     data = _read_bytes(source)
     _check_document(_parse_xml(data))
     urdf = _load_yourdfpy(data).robot
     order, root_link = _walk_tree(urdf.links, urdf.joints)
     links = {link.name: link for link in urdf.links}
     locked = _check_lock(lock, order)
+    mimics = _mimics(order) if mimic else None
+    if mimics:
+        locked = {k: float(v) for k, v in follow_locks(mimics, locked).items()}
     requested = _check_end_effectors(end_effectors, links)
     # Weld fixed (and locked) links into their parent body first, with numeric inertias, so that with
     # symbolic_inertia the 10 parameters of each moving body describe the merged body.
-    joints, frames = merge_fixed(_joints(source, order, links, locked), [])
+    joints, frames = merge_fixed(_joints(source, order, links, locked, mimics), [])
     joints, defaults = _inertial_parameters(joints, symbolic_inertia)
     if drives:
         joints, more = _drives(joints, {j.name: j for j in order})
@@ -115,6 +123,8 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives) -> Rob
             keys.add(f"joints[{k}].{part}", f"joint[name={j.name}].{key}")
         keys.add(f"joints[{k}].inertia", f"link[name={j.link}].inertial")
         keys.add(f"joints[{k}].drive", f"joint[name={j.name}].dynamics")
+        keys.add(f"joints[{k}].mimic", f"joint[name={j.name}].mimic")
+        keys.add(f"joints[{k}].limits", f"joint[name={j.name}].limit")
     for k, f in enumerate(frames):
         keys.add(f"frames[{k}]", f"link[name={f.name}]")
     try:
@@ -123,8 +133,15 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives) -> Rob
         raise keys.relocate(err) from None
 
 
-def _joints(source, order, links, locked) -> list[Joint]:
-    """The URDF joints in the order of the walk, locked ones fixed at their position."""
+def _mimics(order) -> dict[str, Mimic]:
+    """The ``<mimic>`` of every moving joint, chains composed (:func:`jaxskid.model._mimic.resolve`)."""
+    given = {j.name: Mimic(j.mimic.joint, _exact(1.0 if j.mimic.multiplier is None else j.mimic.multiplier),
+                           _exact(j.mimic.offset or 0.0)) for j in order if j.mimic is not None and j.type != "fixed"}
+    return resolve(given, {j.name: _JOINT_TYPES[j.type] for j in order}, lambda name: f"joint[name={name}].mimic")
+
+
+def _joints(source, order, links, locked, mimics) -> list[Joint]:
+    """The URDF joints in the order of the walk: locked ones fixed, mimic ones coupled by ``mimics`` (or None)."""
     body = {order[0].parent: -1} if order else {}
     joints = []
     for k, j in enumerate(order):
@@ -132,14 +149,15 @@ def _joints(source, order, links, locked) -> list[Joint]:
         kind = _JOINT_TYPES[j.type]
         m6 = _inertia(links[j.child].inertial)
         joint = Joint(j.name, kind, body[j.parent], _pose(j.origin), _screw(kind, j.axis),
-                      sp.ImmutableMatrix(6, 6, [_exact(x) for x in m6.flat]), j.child)
+                      sp.ImmutableMatrix(6, 6, [_exact(x) for x in m6.flat]), j.child, limits=joint_limits(j))
         if j.name in locked:
             joint = lock_joint(joint, _exact(locked[j.name]))
-        elif j.mimic is not None:
-            _logger.warning(
-                "%s: joint[name=%s].mimic: read as an independent joint (its coupling to %r is dropped)",
-                source, j.name, j.mimic.joint,
-            )
+        elif mimics is not None and j.name in mimics:
+            joint = replace(joint, mimic=mimics[j.name])
+        elif mimics is None and j.mimic is not None and kind != "fixed":
+            warnings.warn(f"{source}: joint[name={j.name}].mimic: read as an independent joint (its coupling to "
+                          f"{j.mimic.joint!r} is dropped); load with mimic=True to couple it",
+                          DescriptionWarning, stacklevel=5)
         joints.append(joint)
     return joints
 
@@ -317,7 +335,7 @@ def _check_document(root) -> None:
             a = _floats(axis.get("xyz", "1 0 0"), 3, f"{where}.axis")
             if not any(a):
                 raise ModelError(f"expected a non-zero axis, got {axis.get('xyz')!r}", where=f"{where}.axis")
-        for tag, attrs in _NUMERIC_JOINT_ATTRIBUTES.items():
+        for tag, attrs in NUMERIC_JOINT_ATTRIBUTES.items():
             sub = el.find(tag)
             for attr in attrs if sub is not None else ():
                 if sub.get(attr) is not None:  # +-inf is a usable limit; nan and words are not
@@ -331,14 +349,6 @@ def _check_document(root) -> None:
     for where, target in mimics:
         if target not in joint_names:
             raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
-
-
-_NUMERIC_JOINT_ATTRIBUTES = {  # read by yourdfpy (as floats) though not by jaxskid's dynamics
-    "limit": ("lower", "upper", "effort", "velocity"),
-    "dynamics": ("damping", "friction"),
-    "calibration": ("rising", "falling"),
-    "safety_controller": ("soft_lower_limit", "soft_upper_limit", "k_position", "k_velocity"),
-}
 
 
 def _check_inertial(el, where: str) -> None:

@@ -17,9 +17,16 @@ Reading the file back (:func:`jaxskid.load`, or Pinocchio's ``buildModelFromUrdf
 in the reader's joint order (a depth-first walk, children by name). URDF holds neither parameters nor
 gravity: every parameter takes its default value (one without raises :class:`ModelError` naming it), and a
 gravity other than the URDF readers' (0, 0, -9.81) is written as a comment, with a
-:class:`DescriptionWarning` (load it with ``jaxskid.load(path, gravity=...)``). jaxskid's models hold no
-joint limits; revolute and prismatic joints need a ``<limit>`` element (urdfdom), so they get
-``effort="0" velocity="0"`` (lower and upper default to 0), placeholders said so in the file's comment.
+:class:`DescriptionWarning` (load it with ``jaxskid.load(path, gravity=...)``).
+
+* A joint's drive (:class:`~jaxskid.Drive`) gives its ``<dynamics damping="fv" friction="fc">`` (viscous and
+  Coulomb friction, which ``jaxskid.load(path, drives=True)`` reads back as the defaults of ``J_fv`` and
+  ``J_fc``). URDF has no field for the armature or the torque offset: those that are not zero are listed in
+  the file's comment.
+* Revolute and prismatic joints need a ``<limit>`` element (urdfdom). A joint's ``limits`` (lower, upper,
+  velocity, effort; infinite where unknown), when the model holds them, give its attributes; unknown bounds
+  are left out (URDF readers take 0) and an unknown velocity or effort is written as the placeholder 0, as is
+  every limit of a joint without ``limits``; the file's comment says so.
 """
 
 from __future__ import annotations
@@ -113,6 +120,35 @@ def _joint(root, name, kind, parent, child, origin) -> ET.Element:
     return joint
 
 
+def _known(value) -> float | None:
+    """A limit as a float, ``None`` where it is unknown (infinite, NaN or not a number)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _limits(j) -> dict[str, str]:
+    """The ``<limit>`` attributes of joint ``j``: its ``limits`` where known, else the placeholders."""
+    limits = getattr(j, "limits", None)
+    known = {k: _known(getattr(limits, k, None)) for k in ("lower", "upper", "velocity", "effort")}
+    out = {k: _numbers([v]) for k, v in known.items() if v is not None}
+    return {"effort": "0", "velocity": "0", **out}
+
+
+def _dynamics_and_limit(joint: ET.Element, j) -> None:
+    """The ``<dynamics>`` (from the drive's friction), ``<limit>`` and ``<mimic>`` elements of a moving joint."""
+    if j.drive is not None:
+        ET.SubElement(joint, "dynamics", damping=_numbers([float(j.drive.viscous)]),
+                      friction=_numbers([float(j.drive.coulomb)]))
+    ET.SubElement(joint, "limit", **_limits(j))
+    mimic = getattr(j, "mimic", None)
+    if mimic is not None:
+        ET.SubElement(joint, "mimic", joint=mimic.joint, multiplier=_numbers([float(mimic.multiplier)]),
+                      offset=_numbers([float(mimic.offset)]))
+
+
 def robot_to_urdf(robot: Robot) -> str:
     """The URDF text of ``robot`` (its parameters at their defaults); see the module docstring."""
     robot = numeric_robot(robot)
@@ -129,8 +165,8 @@ def robot_to_urdf(robot: Robot) -> str:
         origin = _translation(-parent_shift) @ _array(j.origin) @ _translation(shifts[i])
         joint = _joint(root, j.name, j.type, parent, j.link, origin)
         ET.SubElement(joint, "axis", xyz=_numbers(x[:3] if j.type == "revolute" else x[3:]))
-        ET.SubElement(joint, "limit", effort="0", velocity="0")
-    names = set(robot.joint_names)
+        _dynamics_and_limit(joint, j)
+    names = {j.name for j in robot.joints}  # mimic joints included
     for f in robot.frames:
         parent = robot.base if f.body < 0 else robot.joints[f.body].link
         shift = np.zeros(3) if f.body < 0 else shifts[f.body]
@@ -147,11 +183,30 @@ def robot_to_urdf(robot: Robot) -> str:
 def _header(robot: Robot) -> str:
     gravity = tuple(float(g) for g in robot.gravity)
     lines = ['<?xml version="1.0"?>',
-             f"<!-- {robot.name}: written by jaxskid (jaxskid convert); every parameter at its default value.",
-             "     Joint limits are placeholders (effort 0, velocity 0): jaxskid's models hold none."]
+             f"<!-- {robot.name}: written by jaxskid (jaxskid convert); every parameter at its default value."]
+    if any(getattr(j, "limits", None) is not None for j in robot.joints):
+        lines.append("     Joint limits from the model; unknown ones are placeholders (effort 0, velocity 0; lower and "
+                     "upper left out).")
+    else:
+        lines.append("     Joint limits are placeholders (effort 0, velocity 0): the model holds none.")
+    lines += _drive_notes(robot)
     if not np.allclose(gravity, URDF_GRAVITY, rtol=0, atol=1e-15):
         lines.append(f"     Gravity {list(gravity)} (URDF has none): load with jaxskid.load(path, gravity=...).")
     return "\n".join(lines) + " -->\n"
+
+
+def _drive_notes(robot: Robot) -> list[str]:
+    """Comment lines on the drives: friction in ``<dynamics>``; armature and offset, which URDF cannot hold."""
+    driven = [j for j in robot.joints if j.drive is not None]
+    if not driven:
+        return []
+    lines = ["     Drives: viscous and Coulomb friction as <dynamics damping friction>. URDF has no field for the",
+             "     armature (reflected rotor inertia) or the torque offset; they are not written."]
+    for field, what in (("armature", "armature"), ("offset", "torque offset")):
+        values = [f"{j.name} {float(getattr(j.drive, field))!r}" for j in driven if float(getattr(j.drive, field))]
+        if values:
+            lines.append(f"     Not written, {what}: " + ", ".join(values) + ".")
+    return lines
 
 
 def write_urdf(robot: Robot, path, *, force: bool = False) -> None:

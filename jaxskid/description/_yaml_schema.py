@@ -46,7 +46,8 @@ jaxskid keys
     left out is 0, and ``gear_ratio`` with ``rotor_inertia`` may replace ``armature = gear_ratio^2
     rotor_inertia``; values are numbers or expressions of parameters; :mod:`._yaml_drives`). A joint with a
     drive here is driven without ``jaxskid.load(..., drives=True)``, which gives the others the parameters
-    ``{joint}_Ia, {joint}_fv, {joint}_fc, {joint}_fo`` (default 0).
+    ``{joint}_Ia, {joint}_fv, {joint}_fc, {joint}_fo`` (default 0). ``mimic`` (per joint, ``null`` or
+    ``{joint, multiplier, offset}``: it follows that joint, ``q = multiplier q_joint + offset``; :mod:`._yaml_mimic`).
 
 Gravity. Skidy builds the base acceleration as ``Vd_0 = (0, -gravity_vector)`` and adds
 ``Q_grav = J^T Mb U Vd_0`` to ``M q2d + C qd`` (``src/skidy/kinematics_generator.py``), and its templates and
@@ -80,6 +81,7 @@ from ._keymap import KeyMap
 from ._wrenches import DescriptionExtras, end_effector_wrenches
 from ._yaml_drives import check_unlocked, read_drives
 from ._yaml_file import load_mapping
+from ._yaml_mimic import read_mimics
 from ._yaml_values import ValueReader
 
 _SKIDY_KEYS = (
@@ -88,7 +90,7 @@ _SKIDY_KEYS = (
     "assignments",
 )
 _JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock", "dh",
-                 "drives")
+                 "drives", "mimic")
 _GEOMETRY_KEYS = ("joint_screw_coord", "body_ref_config", "representation")  # what a dh block replaces
 _DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
 _WRENCHES = ("WEE", "WDEE", "W2DEE")
@@ -231,8 +233,9 @@ class _Parser(ValueReader):
         for i in range(n):
             self.keys.add(f"joints[{i}].inertia", f"mass_inertia[{i}]")
         drives = read_drives(self, self.data.get("drives"), n, self.keys)
-        return [Joint(joint_names[i], types[i], parents[i], poses[i], screws[i], inertias[i], link_names[i], drives[i])
-                for i in range(n)]
+        mimics = read_mimics(self, self.data.get("mimic"), n, self.keys)
+        return [Joint(joint_names[i], types[i], parents[i], poses[i], screws[i], inertias[i], link_names[i], drives[i],
+                      mimics[i]) for i in range(n)]
 
     def screws_and_poses(self, n) -> tuple[list, list, list, list[int]]:
         """(types, body-fixed screws, body-fixed poses, parents) from ``joint_screw_coord`` and ``body_ref_config``."""

@@ -78,7 +78,7 @@ def robot_to_dict(robot: Robot, *, rotations: str = "matrix") -> dict:
         out["base"] = robot.base
     out["representation"] = "body_fixed"
     out["gravity"] = [_value(g) for g in robot.gravity]
-    out["joint_names"] = list(robot.joint_names)
+    out["joint_names"] = [j.name for j in robot.joints]
     out["link_names"] = list(robot.link_names)
     out["parent"] = [p + 1 for p in robot.parents]
     out["joint_screw_coord"] = [[_value(e) for e in j.screw] for j in robot.joints]
@@ -88,6 +88,9 @@ def robot_to_dict(robot: Robot, *, rotations: str = "matrix") -> dict:
         out["drives"] = [None if j.drive is None else dict(zip(("armature", "viscous", "coulomb", "offset"),
                                                                map(_value, j.drive.values())))
                          for j in robot.joints]
+    if robot.mimic_joints:
+        out["mimic"] = [None if j.mimic is None else {"joint": j.mimic.joint, "multiplier": _value(j.mimic.multiplier),
+                                                      "offset": _value(j.mimic.offset)} for j in robot.joints]
     if robot.end_effectors:
         ee = [robot.frame(name) for name in robot.end_effectors]
         out["ee"] = [_pose(f.offset, rotations) for f in ee]

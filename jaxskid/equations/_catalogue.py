@@ -93,7 +93,7 @@ def _vector(r: Robot) -> tuple[int, ...]:
 
 
 def _per_body(r: Robot) -> tuple[int, ...]:
-    return (r.n_dof, 6)
+    return (r.n_bodies, 6)
 
 
 def _per_ee(r: Robot) -> tuple[int, ...]:
@@ -105,7 +105,7 @@ def _ee_jacobian(r: Robot) -> tuple[int, ...]:
 
 
 def _system(r: Robot) -> tuple[int, ...]:
-    return (6 * r.n_dof, r.n_dof)
+    return (6 * r.n_bodies, r.n_dof)
 
 
 def _poses(r: Robot) -> tuple[int, ...]:
@@ -122,6 +122,10 @@ def _vjp(r: Robot) -> tuple[int, ...]:
 
 def _regressor(r: Robot) -> tuple[int, ...]:
     return (r.n_dof, n_standard(r))
+
+
+def _standard_row(r: Robot) -> tuple[int, ...]:
+    return (n_standard(r),)
 
 
 # ---------------------------------------------------------------------------------------------- time derivatives
@@ -316,6 +320,28 @@ _CATALOGUE = (
         "momentum", ("q", "qd"), _vector, lambda d: sym.with_rotor_momentum(d, sym.momentum(d)),
         "p(q, qd) = dK/dqd = M(q) qd", "Generalized momentum: the body momenta carried to the joints.",
         lagrange=sym.lagrange.momenta,
+    ),
+    # The energy regressors serve both routes: they are rows of the same energies, not equations of motion.
+    QuantitySpec(
+        "kinetic_energy_regressor", ("q", "qd"), _standard_row, sym.kinetic_energy_regressor,
+        "K(q, qd) = y_K(q, qd) pi",
+        "Kinetic energy (with the rotors' 1/2 Ia qd^2) as a row in the standard parameters pi of "
+        "jaxskid.standard_params, the columns of regressor: linear in each body's (m, m c, I).",
+    ),
+    QuantitySpec(
+        "potential_energy_regressor", ("q",), _standard_row, sym.potential_energy_regressor,
+        "U(q) = y_U(q) pi", "Gravitational potential energy as a row in the standard parameters pi.",
+    ),
+    QuantitySpec(
+        "momentum_regressor", ("q", "qd"), _regressor, lambda d: _flat(sym.momentum_regressor(d)),
+        "M(q) qd = Y_p(q, qd) pi",
+        "Generalized momentum (with the rotors' Ia qd) as a regressor in the standard parameters pi.",
+    ),
+    QuantitySpec(
+        "friction_power_regressor", ("q", "qd"), _standard_row, sym.friction_power_regressor,
+        "qd^T (fv qd + fc sign(qd) + fo) = y_P(qd) pi",
+        "Power of the drives' friction and offset as a row in the standard parameters pi (zero for the "
+        "bodies' and the armature's columns): d/dt (K + U) = qd^T tau - y_P pi.",
     ),
 )
 

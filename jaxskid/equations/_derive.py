@@ -16,6 +16,7 @@ import sympy as sp
 from .._errors import RequestError
 from ..model._robot import Robot
 from ..symbolic import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs
+from . import _mimic as mimic
 from ._catalogue import DEFAULT_QUANTITIES, QUANTITIES
 from ._options import Options, apply_options
 
@@ -113,6 +114,8 @@ def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, 
         raise RequestError(
             f"unknown quantity {', '.join(map(repr, unknown))}; available: {', '.join(sorted(QUANTITIES))}"
         )
+    if quantities is None or quantities == "all":
+        names = mimic.supported(robot, names)
     if not robot.end_effectors:
         if quantities is None or quantities == "all":
             names = [q for q in names if not QUANTITIES[q].needs_end_effector]
@@ -137,15 +140,18 @@ def derive(
     options: Options | None = None,
     progress: bool = False,
 ) -> Equations:
-    """Derive the requested quantities of ``robot`` in closed form (nothing else is derived)."""
+    """Derive the requested quantities of ``robot`` in closed form (nothing else is derived); for a robot
+    with mimic joints, in its independent coordinates (:mod:`jaxskid.equations._mimic`)."""
     options = options or Options()
     names = resolve(robot, quantities)
+    mimic.check(robot, names, options.route)
     inputs = Inputs.of(robot)
     d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing))
     built: dict[str, list] = {}
     for name in _progress(names, progress):
         spec = QUANTITIES[name]
-        outs = spec.builder(options.route)(d)
+        builder = spec.builder(options.route)
+        outs = mimic.build(name, builder, d) if robot.mimic_joints else builder(d)
         size = 1
         for n in spec.shape(robot):
             size *= n

@@ -1,7 +1,7 @@
 """The robot model: an immutable tree of joints and bodies with symbolic inertial parameters.
 
 :class:`Robot` (``_robot``) is built from :class:`Joint` s and :class:`Frame` s (``_joint``), whose drives are
-:class:`Drive` s (``_drive``), and validated in
+:class:`Drive` s (``_drive``) and whose couplings are :class:`Mimic` s (``_mimic``), and validated in
 one place (``_validate``); fixed joints are locked and welded by ``_fixed``; ``_lie`` holds the SymPy
 spatial matrices and ``_parameters`` the rule that maps a user's parameters onto a model's.
 
@@ -15,7 +15,9 @@ _EXPORTS = {
     "Drive": "_drive",
     "Frame": "_joint",
     "Joint": "_joint",
+    "JointLimits": "_joint",
     "JOINT_TYPES": "_robot",
+    "Mimic": "_mimic",
     "ParameterLayout": "_parameters",
     "Robot": "_robot",
     "lock_joint": "_fixed",

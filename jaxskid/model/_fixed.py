@@ -18,10 +18,11 @@ from ._joint import Frame
 
 
 def lock_joint(joint, value):
-    """``joint`` fixed at position ``value``: type ``"fixed"``, origin ``B exp(X value)``, no screw and no
-    drive (Müller 2018, eq. 9: the relative pose ``C_{p,i}(q_i) = B_i exp(X_i q_i)`` at ``q_i = value``)."""
+    """``joint`` fixed at position ``value``: type ``"fixed"``, origin ``B exp(X value)``, no screw, no
+    drive and no mimic coupling (Müller 2018, eq. 9: the relative pose ``C_{p,i}(q_i) = B_i exp(X_i q_i)`` at
+    ``q_i = value``)."""
     origin = sp.ImmutableMatrix(joint.origin * lie.screw_exp(joint.screw, value))
-    return replace(joint, type="fixed", origin=origin, screw=(0,) * 6, drive=None)
+    return replace(joint, type="fixed", origin=origin, screw=(0,) * 6, drive=None, mimic=None)
 
 
 def merge_fixed(joints: Sequence, frames: Sequence) -> tuple[list, list]:

@@ -7,7 +7,12 @@ quantity is stored in the **body-fixed representation** (Müller 2018, sec. 2.3)
 * ``Joint.screw`` (``X_i``): the joint's unit screw coordinates ``(omega, v)`` in body ``i``'s frame;
 * the relative pose at ``q`` is ``C_{p,i}(q_i) = B_i exp(X_i q_i)``;
 * ``Joint.inertia``: the 6x6 mass-inertia matrix of body ``i`` in its own frame (see :mod:`jaxskid.model._lie`);
-* ``Joint.drive``: the joint's drive (armature, friction, offset; :mod:`jaxskid.model._drive`), or ``None``.
+* ``Joint.drive``: the joint's drive (armature, friction, offset; :mod:`jaxskid.model._drive`), or ``None``;
+* ``Joint.mimic``: the joint it follows, ``q_i = a q_j + b`` (:mod:`jaxskid.model._mimic`), or ``None``.
+
+Only the independent joints are coordinates: ``q`` has :attr:`Robot.n_dof` entries, one per joint that
+mimics no other, in the order of the bodies (:attr:`Robot.coordinates`); without mimic joints every body's
+joint is one.
 
 Descriptions in the spatial representation are converted with :func:`spatial_to_body`. :meth:`Robot.create`
 validates what it is given (:mod:`jaxskid.model._validate`), then merges fixed joints into their parent body
@@ -21,16 +26,18 @@ import hashlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
+import numpy as np
 import sympy as sp
 
 from . import _lie as lie
 from .._errors import ModelError
 from ._drive import Drive, drive_parameter_names
 from ._fixed import lock_joint, merge_fixed
-from ._joint import Frame, Joint
+from ._joint import Frame, Joint, JointLimits
+from ._mimic import Mimic, follow_locks, resolve
 from ._validate import check_defaults, check_parents, symbol, to_expr, validate
 
-__all__ = ["JOINT_TYPES", "Drive", "Frame", "Joint", "Robot", "spatial_to_body", "symbol", "to_expr"]
+__all__ = ["JOINT_TYPES", "Drive", "Frame", "Joint", "JointLimits", "Mimic", "Robot", "spatial_to_body", "symbol", "to_expr"]
 
 JOINT_TYPES = ("revolute", "prismatic")
 
@@ -46,7 +53,8 @@ class Robot:
 
     Attributes:
         name: the robot's name.
-        joints: the moving joints in the order of ``q`` (parents before children).
+        joints: the moving joints, one per body, parents before children; the independent ones (no
+            ``mimic``) in the order of ``q``.
         gravity: the gravitational acceleration in the world frame, e.g. ``(0, 0, -9.81)``.
         frames: named frames besides the bodies: merged fixed links and end-effectors.
         end_effectors: names of the frames that are end-effectors.
@@ -90,6 +98,7 @@ class Robot:
         gravity = tuple(to_expr(g, where=f"gravity[{k}]") for k, g in enumerate(gravity))
         clean = check_defaults(defaults or {})
         validate(joints, frames, gravity, end_effectors, clean, base)
+        joints = _resolve_mimics(joints)
         joints, frames = merge_fixed(joints, frames)
         robot = cls(name=name, joints=tuple(joints), gravity=gravity, frames=tuple(frames),
                     end_effectors=tuple(end_effectors), defaults=tuple(clean.items()), base=base)
@@ -105,11 +114,44 @@ class Robot:
     # ------------------------------------------------------------------ views
     @property
     def n_dof(self) -> int:
+        """The number of coordinates: the independent joints (every joint without mimic joints)."""
+        return len(self.coordinates)
+
+    @property
+    def n_bodies(self) -> int:
+        """The number of moving bodies (and of joints, mimic joints included)."""
         return len(self.joints)
 
-    joint_names = _column("name", "Names of the joints, in the order of ``q``.")
-    joint_types = _column("type", "``revolute`` or ``prismatic``, per joint.")
-    link_names = _column("link", "Names of the moving bodies, in the order of ``q``.")
+    @property
+    def coordinates(self) -> tuple[int, ...]:
+        """The body of each coordinate: the indices of the joints that mimic no other, in the order of ``q``."""
+        return tuple(i for i, j in enumerate(self.joints) if j.mimic is None)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """Names of the independent joints, in the order of ``q`` (mimic joints: :attr:`mimic_joints`)."""
+        return tuple(self.joints[i].name for i in self.coordinates)
+
+    @property
+    def joint_types(self) -> tuple[str, ...]:
+        """``revolute`` or ``prismatic``, per independent joint, in the order of ``q``."""
+        return tuple(self.joints[i].type for i in self.coordinates)
+
+    @property
+    def mimic_joints(self) -> tuple[str, ...]:
+        """Names of the joints that follow another (``Joint.mimic``), in body order."""
+        return tuple(j.name for j in self.joints if j.mimic is not None)
+
+    def coupling(self) -> tuple[tuple[int, sp.Expr, sp.Expr], ...]:
+        """Per body, ``(k, a, b)`` with its joint's position ``a q[k] + b`` (``(k, 1, 0)`` for coordinate k):
+        the rows of ``q_bodies = G q + b`` (:mod:`jaxskid.model._mimic`)."""
+        index = {self.joints[i].name: k for k, i in enumerate(self.coordinates)}
+        one, zero = sp.Integer(1), sp.Integer(0)
+        return tuple((index[j.name], one, zero) if j.mimic is None else
+                     (index[j.mimic.joint], sp.sympify(j.mimic.multiplier), sp.sympify(j.mimic.offset))
+                     for j in self.joints)
+
+    link_names = _column("link", "Names of the moving bodies, in body order (the order of ``q`` without mimic joints).")
     parents = _column("parent", "Parent body of every body (``-1``: the world).")
 
     @property
@@ -156,8 +198,16 @@ class Robot:
         """Indices (in the order of ``q``) of the joints that have a drive."""
         return tuple(i for i, j in enumerate(self.joints) if j.drive is not None)
 
+    def limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(lower, upper, velocity, effort)``, each of shape ``(n_dof,)`` in the order of ``q``, from every
+        joint's :class:`JointLimits` (``-inf``, ``inf``, ``inf``, ``inf`` where a joint has none)."""
+        by_name = {j.name: j.limits or JointLimits() for j in self.joints}
+        rows = [by_name[name] for name in self.joint_names]
+        return tuple(np.array([getattr(r, key) for r in rows], dtype=float).reshape(len(rows))
+                     for key in ("lower", "upper", "velocity", "effort"))
+
     def fingerprint(self) -> str:
-        """A stable hash of everything that determines the equations of motion."""
+        """A stable hash of everything that determines the equations of motion (joint limits do not)."""
         h = hashlib.sha256()
         for j in self.joints:
             h.update(repr((j.name, j.type, j.parent, j.link)).encode())
@@ -166,6 +216,8 @@ class Robot:
             h.update(sp.srepr(j.inertia).encode())
             if j.drive is not None:  # a robot without drives hashes as it did before drives existed
                 h.update(sp.srepr(("drive", *j.drive.values())).encode())
+            if j.mimic is not None:  # the same for mimic joints
+                h.update(sp.srepr(("mimic", j.mimic.joint, j.mimic.multiplier, j.mimic.offset)).encode())
         h.update(sp.srepr(self.gravity).encode())
         for f in self.frames:
             h.update(repr((f.name, f.body)).encode())
@@ -179,16 +231,19 @@ class Robot:
 
         The locked body's inertia is added to its parent's. With per-link symbolic inertias the merged
         body then carries both links' symbols; for identification, lock while reading
-        (``jaxskid.load(path, lock=...)``) so that each moving body keeps 10 parameters.
+        (``jaxskid.load(path, lock=...)``) so that each moving body keeps 10 parameters. The mimic joints
+        of a locked joint are locked with it (:func:`~jaxskid.model._mimic.follow_locks`).
         """
-        unknown = [k for k in values if k not in self.joint_names]
+        names = [j.name for j in self.joints]
+        unknown = [k for k in values if k not in names]
         if unknown:
             raise ModelError(
-                f"cannot lock unknown joint(s) {', '.join(map(repr, unknown))}; joints are {', '.join(self.joint_names)}",
+                f"cannot lock unknown joint(s) {', '.join(map(repr, unknown))}; joints are {', '.join(names)}",
                 where="lock",
             )
-        joints = [lock_joint(j, to_expr(values[j.name], where=f"lock.{j.name}")) if j.name in values else j
-                  for j in self.joints]
+        values = {k: to_expr(v, where=f"lock.{k}") for k, v in values.items()}
+        values = follow_locks({j.name: j.mimic for j in self.joints if j.mimic is not None}, values)
+        joints = [lock_joint(j, values[j.name]) if j.name in values else j for j in self.joints]
         return self._recreate(joints=joints)
 
     def with_drives(self, defaults: Mapping[str, float] | None = None) -> "Robot":
@@ -293,7 +348,23 @@ def _normalize_joint(j: Joint, i: int) -> Joint:
         if not isinstance(drive, Drive):
             raise ModelError(f"expected a Drive or None, got {type(drive).__name__}", where=f"{where}.drive")
         drive = drive.normalized(f"{where}.drive")
-    return Joint(str(j.name), j.type, j.parent, origin, screw, inertia, str(j.link), drive)
+    mimic = Mimic.of(j.mimic, f"{where}.mimic")
+    limits = j.limits
+    if limits is not None:
+        if not isinstance(limits, JointLimits):
+            raise ModelError(f"expected a JointLimits or None, got {type(limits).__name__}", where=f"{where}.limits")
+        limits = limits.checked(f"{where}.limits")
+    return Joint(str(j.name), j.type, j.parent, origin, screw, inertia, str(j.link), drive, mimic, limits)
+
+
+def _resolve_mimics(joints: list[Joint]) -> list[Joint]:
+    """The joints with every mimic coupling composed down to an independent joint (:func:`resolve`)."""
+    mimics = {j.name: j.mimic for j in joints if j.mimic is not None}
+    if not mimics:
+        return joints
+    position = {j.name: i for i, j in enumerate(joints)}
+    done = resolve(mimics, {j.name: j.type for j in joints}, lambda name: f"joints[{position[name]}].mimic")
+    return [replace(j, mimic=done[j.name]) if j.name in done else j for j in joints]
 
 
 def _normalize_frame(f: Frame, k: int) -> Frame:

@@ -1,10 +1,11 @@
 """The standard parameters: 10 per body, then 4 per driven joint, the parameters the regressor is linear in.
 
-Per body, in the order of ``q``: ``pi_i = (m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``,
-the inertia about the body frame's origin in its axes (Atkeson, An & Hollerbach, IJRR 5(3), 1986;
-Pinocchio's ``Inertia.toDynamicParameters`` order, :data:`jaxskid.model._lie.STANDARD_PARAMETER_NAMES`).
+Per body, in body order (the order of ``q`` without mimic joints):
+``pi_i = (m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``, the inertia about the body frame's
+origin in its axes (Atkeson, An & Hollerbach, IJRR 5(3), 1986; Pinocchio's ``Inertia.toDynamicParameters``
+order, :data:`jaxskid.model._lie.STANDARD_PARAMETER_NAMES`).
 They are named ``{link}_{p}``, the convention of the robot's own parameters (``upper_arm_link_m``).
-A robot with drives (:mod:`jaxskid.model._drive`) has 4 more per driven joint, in the order of ``q``:
+A robot with drives (:mod:`jaxskid.model._drive`) has 4 more per driven joint, in body order:
 ``(Ia, fv, fc, fo)``, named ``{joint}_{p}`` (:func:`~jaxskid.model._drive.drive_parameter_names`).
 A robot's own parameters are read through :class:`~jaxskid.model._parameters.ParameterLayout`: a partial
 dict takes the defaults for the rest, and an unknown name is an error that names the closest valid ones.
@@ -28,14 +29,14 @@ N_STANDARD = len(lie.STANDARD_PARAMETER_NAMES)  # 10 parameters per body
 
 def n_standard(robot: Robot) -> int:
     """The number of standard parameters: ``10 n_bodies + 4 n_driven``."""
-    return N_STANDARD * robot.n_dof + len(DRIVE_PARAMETER_NAMES) * len(robot.driven)
+    return N_STANDARD * robot.n_bodies + len(DRIVE_PARAMETER_NAMES) * len(robot.driven)
 
 
 def standard_parameter_names(robot: Robot) -> tuple[str, ...]:
     """``{link}_{m, mcx, ..., Izz}`` for every body, then ``{joint}_{Ia, fv, fc, fo}`` for every driven
     joint, in the order of :func:`standard_params`."""
     bodies = tuple(f"{link}_{p}" for link in robot.link_names for p in lie.STANDARD_PARAMETER_NAMES)
-    return bodies + tuple(n for i in robot.driven for n in drive_parameter_names(robot.joint_names[i]))
+    return bodies + tuple(n for i in robot.driven for n in drive_parameter_names(robot.joints[i].name))
 
 
 def standard_parameter_expressions(robot: Robot) -> list[sp.Expr]:
@@ -65,10 +66,10 @@ def standard_params(robot: Robot, params: Mapping[str, float] | Sequence[float] 
     """The standard parameters ``pi`` (10 per body, 4 per driven joint) of ``robot`` at these parameter values.
 
     ``pi`` is what the regressor multiplies: ``dyn.regressor(q, qd, qdd, params) @ pi`` equals
-    ``dyn.inverse_dynamics(q, qd, qdd, params)``. Per body, in the order of ``q``:
-    ``(m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``, the inertia about the body frame's
-    origin in its axes (Pinocchio's ``Inertia.toDynamicParameters``); then per driven joint, in the order of
-    ``q``: ``(Ia, fv, fc, fo)``.
+    ``dyn.inverse_dynamics(q, qd, qdd, params)``. Per body, in body order (the order of ``q`` without
+    mimic joints): ``(m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz)``, the inertia about the body frame's
+    origin in its axes (Pinocchio's ``Inertia.toDynamicParameters``); then per driven joint, in body
+    order: ``(Ia, fv, fc, fo)``.
 
     Args:
         robot: the model.
@@ -76,7 +77,7 @@ def standard_params(robot: Robot, params: Mapping[str, float] | Sequence[float] 
             vector in the order of ``robot.parameters``.
 
     Returns:
-        a float64 array of shape ``(10 * robot.n_dof + 4 * len(robot.driven),)``.
+        a float64 array of shape ``(10 * robot.n_bodies + 4 * len(robot.driven),)``.
     """
     sub = {symbol(k): sp.Float(v) for k, v in _values(robot, params, "standard_params: params").items()}
     return np.array([float(sp.sympify(e).xreplace(sub)) for e in standard_parameter_expressions(robot)])

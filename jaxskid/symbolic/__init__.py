@@ -17,6 +17,7 @@ derived together share their work. Each algorithm is a function of the derivatio
 * ``_adjoint``: differentiation of the tape, reverse mode (the vector-Jacobian product of inverse dynamics)
   and forward mode;
 * ``_energy``: kinetic and potential energy;
+* ``_energy_regressor``: the energies, the momentum and the friction power as rows in the standard parameters;
 * ``_lagrange``: the Euler-Lagrange route to M, C qd, Q_grav and tau, from the link energies.
 
 The spatial algebra they share is :mod:`jaxskid.model._spatial`.
@@ -29,6 +30,9 @@ from ._crba import mass_matrix
 from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
 from ._drives import with_rotor_energy, with_rotor_momentum
 from ._energy import kinetic_energy, momentum, potential_energy
+from ._energy_regressor import (
+    friction_power_regressor, kinetic_energy_regressor, momentum_regressor, potential_energy_regressor,
+)
 from ._forward import forward_dynamics
 from ._frames import (
     body_hybrid_acceleration, body_hybrid_twist, frame_hybrid_acceleration, frame_hybrid_twist, frame_motion,
@@ -68,6 +72,10 @@ __all__ = [
     "inverse_dynamics_vjp",
     "jvp",
     "kinetic_energy",
+    "kinetic_energy_regressor",
+    "friction_power_regressor",
+    "momentum_regressor",
+    "potential_energy_regressor",
     "lagrange",
     "potential_energy",
     "frame_hybrid_acceleration",

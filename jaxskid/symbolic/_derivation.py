@@ -4,6 +4,12 @@ Every algorithm of the symbolic stage is a function ``f(d, *args)`` of a :class:
 ones whose results other algorithms reuse are declared :func:`memoized`: their result is computed once
 per derivation and argument tuple, so quantities derived together share their intermediates (a body's
 twist, its Jacobian columns, a composite inertia) and name each only once on the tape.
+
+The algorithms work body by body: ``d.n`` is the number of bodies and ``d.q[i]`` body i's joint position.
+A mimic joint's position and its derivatives (:mod:`jaxskid.model._mimic`) are symbols of their own, the
+first assignments of the tape (``_q_m{i} = a q_k + b``, ``_qd_m{i} = a qd_k``, ...), so every algorithm
+is in closed form in the independent coordinates and the tape's differentiation (:mod:`._adjoint`) follows
+the coupling.
 """
 
 from __future__ import annotations
@@ -36,11 +42,13 @@ def _wrench_symbols(prefix: str, n_ee: int) -> tuple[tuple[sp.Symbol, ...], ...]
 class Inputs:
     """The symbols the derived equations are functions of.
 
-    ``state[k]`` holds the k-th time derivative of the joint positions (``_q{i}``, ``_qd{i}``, ``_qdd{i}``,
-    ``_q3d{i}``, ``_q4d{i}``), each of shape ``(n,)``; ``tau`` the joint forces ``_tau{i}``; ``wrenches[r]``
+    ``state[k]`` holds the k-th time derivative of every body's joint position, shape ``(n_bodies,)``: the
+    coordinates ``_q{k}``, ``_qd{k}``, ``_qdd{k}``, ``_q3d{k}``, ``_q4d{k}`` (k in the order of ``q``), and
+    for a mimic joint ``_q_m{i}``, ``_qd_m{i}``, ... (body i), which the derivation defines on its tape;
+    ``coordinates`` the body of each coordinate. ``tau`` the joint forces ``_tau{k}``; ``wrenches[r]``
     the r-th time derivative of the end-effector wrenches (moment, force), one 6-tuple per end-effector
     (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters;
-    ``cotangent`` the weights ``_ct{i}`` of a vector-Jacobian product of joint forces (shape ``(n,)``).
+    ``cotangent`` the weights ``_ct{k}`` of a vector-Jacobian product of joint forces (shape ``(n,)``).
     """
 
     state: tuple[tuple[sp.Symbol, ...], ...]
@@ -48,19 +56,35 @@ class Inputs:
     wrenches: tuple[tuple[tuple[sp.Symbol, ...], ...], ...]
     params: tuple[sp.Symbol, ...]
     cotangent: tuple[sp.Symbol, ...] = ()
+    coordinates: tuple[int, ...] | None = None
+    """The body of each coordinate (``None``: every body, in order)."""
 
     @classmethod
     def of(cls, robot: Robot) -> Inputs:
         """The inputs of ``robot``'s equations."""
         n, n_ee = robot.n_dof, len(robot.end_effectors)
+        body = {i: k for k, i in enumerate(robot.coordinates)}
+
+        def state(order: str) -> tuple[sp.Symbol, ...]:
+            coords = _symbols(f"_{order}", n)
+            return tuple(coords[body[i]] if i in body else sp.Symbol(f"_{order}_m{i}", real=True)
+                         for i in range(robot.n_bodies))
+
         return cls(
-            state=tuple(_symbols(f"_{k}", n) for k in STATE_ORDERS),
+            state=tuple(state(k) for k in STATE_ORDERS),
             tau=_symbols("_tau", n),
             wrenches=(_wrench_symbols("_w", n_ee), _wrench_symbols("_wrench_d", n_ee),
                       _wrench_symbols("_wrench_dd", n_ee)),
             params=tuple(symbol(p) for p in robot.parameters),
             cotangent=_symbols("_ct", n),
+            coordinates=None if n == robot.n_bodies else robot.coordinates,
         )
+
+    def coordinate(self, k: int) -> tuple[sp.Symbol, ...]:
+        """The symbols of the k-th time derivative of the coordinates ``q`` (shape ``(n,)``)."""
+        if self.coordinates is None:
+            return self.state[k]
+        return tuple(self.state[k][i] for i in self.coordinates)
 
     @property
     def q(self) -> tuple[sp.Symbol, ...]:
@@ -78,7 +102,7 @@ class Inputs:
         """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"``, ``"cotangent"`` or one of
         :data:`WRENCH_ORDERS`), row-major."""
         if name in STATE_ORDERS:
-            return self.state[STATE_ORDERS.index(name)]
+            return self.coordinate(STATE_ORDERS.index(name))
         if name in WRENCH_ORDERS:
             return tuple(s for w in self.wrenches[WRENCH_ORDERS.index(name)] for s in w)
         if name == "tau":
@@ -95,7 +119,7 @@ class Derivation:
 
     ``friction_smoothing`` is ``0`` (Coulomb friction as ``sign(qd)``) or ``eps > 0`` (``tanh(qd / eps)``).
     ``trig`` is ``"symbols"`` (sin and cos of each ``q_i`` named once on the tape) or ``"inline"`` (left
-    in every expression).
+    in every expression). The mimic joints' states are the first assignments of the tape (module docstring).
     """
 
     robot: Robot
@@ -105,9 +129,18 @@ class Derivation:
     tape: Tape = field(default_factory=Tape)
     memo: dict = field(default_factory=dict, repr=False)
 
+    def __post_init__(self):
+        for i, (k, a, b) in enumerate(self.robot.coupling()):
+            if self.robot.joints[i].mimic is None:
+                continue
+            for order, states in enumerate(self.inputs.state):
+                source = self.inputs.state[order][self.inputs.coordinates[k]]
+                self.tape.define(states[i], a * source + (b if order == 0 else 0))
+
     @property
     def n(self) -> int:
-        return self.robot.n_dof
+        """The number of bodies (and of joints, mimic joints included)."""
+        return self.robot.n_bodies
 
     @property
     def q(self) -> tuple[sp.Symbol, ...]:

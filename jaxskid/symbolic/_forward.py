@@ -20,11 +20,14 @@ from ._rnea import bias_forces
 
 def forward_dynamics(d: Derivation, tau: Sequence[sp.Symbol]) -> list:
     """``qdd`` (n expressions on the tape) for joint forces ``tau``, by the sparse ``L^T D L`` of M."""
-    t = d.tape
-    n = d.n
-    lam = list(d.robot.parents)
-    m = mass_matrix(d)
-    bias = bias_forces(d)
+    return solve(d.tape, mass_matrix(d), tau, bias_forces(d), list(d.robot.parents))
+
+
+def solve(t, m, tau: Sequence, bias: Sequence, lam: Sequence[int]) -> list:
+    """``M^-1 (tau - bias)`` on the tape ``t``, for a symmetric positive definite ``M`` (n x n) whose entry
+    ``(i, j)``, ``j < i``, is zero unless ``j`` is an ancestor of ``i`` in the tree of parents ``lam`` (``-1``:
+    the root). ``lam = [-1, 0, 1, ...]`` (a chain) factors a dense matrix; entries that are zero give no work."""
+    n = len(tau)
     h = [[m[i, j] for j in range(n)] for i in range(n)]
     recip = [None] * n
     for k in reversed(range(n)):  # Featherstone 2005, Alg. LTDL: h becomes L (below the diagonal) and D

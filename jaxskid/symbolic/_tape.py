@@ -38,6 +38,15 @@ class Tape:
         self._lookup[e] = s
         return s
 
+    def define(self, name: sp.Symbol, e) -> None:
+        """Record ``name = e`` as the next assignment, under a name of the caller's (an input that other
+        inputs determine, such as a mimic joint's position)."""
+        e = sp.sympify(e)
+        if name in self.defs:
+            raise ValueError(f"{name} is already defined on the tape")
+        self.defs[name] = e
+        self._lookup.setdefault(e, name)
+
     def vec(self, es) -> list:
         """Each entry of ``es`` named, in order."""
         return [self(e) for e in es]

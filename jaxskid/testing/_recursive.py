@@ -250,7 +250,10 @@ class RecursiveDynamics:
 
 
 def recursive_dynamics(robot: Robot) -> RecursiveDynamics:
-    """The numeric recursive evaluation of ``robot``'s M, Q_grav, C qd and tau in JAX."""
+    """The numeric recursive evaluation of ``robot``'s M, Q_grav, C qd and tau in JAX (no mimic joints)."""
+    if robot.mimic_joints:
+        raise RequestError(f"the recursive evaluation has no mimic joints; robot {robot.name!r} has "
+                           f"{', '.join(robot.mimic_joints)}")
     return RecursiveDynamics(
         name=robot.name,
         layout=ParameterLayout(robot.parameters, robot.default_params()),

@@ -176,6 +176,8 @@ class _Evaluator:
             return np.sin(self._eval(e.args[0]))
         if isinstance(e, sp.cos):
             return np.cos(self._eval(e.args[0]))
+        if isinstance(e, sp.sign):  # the drives' Coulomb friction
+            return np.sign(self._eval(e.args[0]))
         raise NotImplementedError(f"cannot evaluate {type(e).__name__} in {e}")
 
     def _abs(self, e):
