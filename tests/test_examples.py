@@ -41,6 +41,18 @@ def test_identify_panda(tmp_path):
 
 
 @pytest.mark.slow
+def test_identify_real_arm(tmp_path):
+    """UR5 with drives, 1 % torque noise, 1e-4 rad encoder: the thresholds the example is meant to meet."""
+    out = load("identify_real_arm").main(tmp_path)
+    assert out["cond_random"] >= 10 * out["cond_optimised"]
+    for method in ("least squares", "weighted least squares", "physically consistent"):
+        assert np.all(out["validation"][method] <= 1.5), (method, out["validation"][method])
+        assert np.all(out["validation"][method] >= 0.9)  # the noise itself: nothing fits below it
+    assert out["pseudo_inertia_pd"] and out["drives_nonnegative"]
+    assert out["figure"].exists() and out["figure"].stat().st_size > 10_000
+
+
+@pytest.mark.slow
 def test_batched_rollouts(tmp_path):
     out = load("batched_rollouts").main(tmp_path, batch=1024)
     assert out["max_final_speed"] < 1e-3

@@ -176,6 +176,7 @@ def _criterion(dyn, base, traj, times, criterion="cond") -> float:
 PENDULUM_LIMITS = {"lower": -2.0, "upper": 2.5, "velocity": 3.0, "acceleration": 8.0}
 
 
+@pytest.mark.slow
 def test_logdet_design_on_the_pendulum(pendulum):
     robot, dyn, base = pendulum
     out = jaxskid.design_excitation(dyn, 3, 4.0, 12, limits=PENDULUM_LIMITS, starts=3, steps=60, criterion="logdet")
