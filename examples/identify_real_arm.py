@@ -120,18 +120,19 @@ def plot(path: Path, result, design, t, tau, predicted, names) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig = plt.figure(figsize=(13, 6))
-    ax = fig.add_subplot(1, 3, 1)
+    fig = plt.figure(figsize=(13, 6.5))
+    grid = fig.add_gridspec(3, 3)
+    ax = fig.add_subplot(grid[:, 0])
     ax.semilogy(design.history.T, lw=0.8, alpha=0.7)
     ax.set(xlabel="optimiser step", ylabel="cond(W) of the base regressor",
            title=f"excitation: {design.initial_median:.0f} (random, median) -> {design.value:.0f}")
     for j in range(tau.shape[1]):
-        a = fig.add_subplot(tau.shape[1], 3, 3 * j + 2) if j < 3 else fig.add_subplot(3, 3, 3 * (j - 3) + 3)
+        a = fig.add_subplot(grid[j % 3, 1 + j // 3])
         a.plot(t, tau[:, j], color="0.6", lw=1.5, label="measured")
         a.plot(t, predicted[:, j], color="C3", lw=0.8, label="identified (WLS)")
-        a.set_ylabel(f"{names[j]} [N m]", fontsize=7)
+        a.set_title(f"{names[j].removesuffix('_joint')} [N m]", fontsize=8)
         a.tick_params(labelsize=7)
-        if j in (2, 5):
+        if j % 3 == 2:
             a.set_xlabel("t [s]")
         if j == 0:
             a.legend(fontsize=7)
