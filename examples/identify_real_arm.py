@@ -20,8 +20,8 @@ values that differ from the URDF's (which has none). The script goes through wha
    positive definite, armature and friction non-negative), and, without accelerations, from the energy
    balance over windows of 0.1 s (:func:`jaxskid.energy_balance`). The energy model gives one equation per
    window against six per sample, and its stacked regressor here is conditioned about 1e6 against the
-   torque model's 1e2: the encoder's quantisation, amplified by it, leaves its validation error far above the
-   torque model's. An excitation designed for the energy regressor itself is what it would need.
+   torque model's 1e2: the measurement noise (the torque noise integrated into the work above all), amplified
+   by it, leaves its validation error far above the torque model's. An excitation designed for the energy regressor itself is what it would need.
 5. **Validation** on another trajectory (another optimised excitation): predicted against measured torque,
    RMS error per joint against the noise's RMS; figures in the output directory.
 """
