@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from .._errors import ModelError
 from ..model._drive import Drive
-from ..model._validate import describe
 from ._keymap import KeyMap
 from ._yaml_values import ValueReader
 
@@ -24,16 +23,8 @@ _KEYS = (*_FIELDS, "gear_ratio", "rotor_inertia")
 def read_drives(reader: ValueReader, value, n: int, keys: KeyMap) -> list[Drive | None]:
     """One :class:`Drive` or ``None`` per joint from the ``drives`` list ``value`` (``None``: no drives);
     records in ``keys`` where each drive's values came from."""
-    if value is None:
-        return [None] * n
-    if not isinstance(value, list) or len(value) != n:
-        raise reader.error("drives", f"expected a list of {n} entries (a drive or null per joint), got {describe(value)}")
-    out: list[Drive | None] = []
-    for i, entry in enumerate(value):
-        where = f"drives[{i}]"
-        if entry is None:
-            out.append(None)
-            continue
+
+    def drive(entry, where: str, i: int) -> Drive:
         d = reader.mapping(entry, where, _KEYS)
         geared = [k for k in ("gear_ratio", "rotor_inertia") if k in d]
         if geared and (len(geared) < 2 or "armature" in d):
@@ -45,8 +36,9 @@ def read_drives(reader: ValueReader, value, n: int, keys: KeyMap) -> list[Drive 
             rotor = reader.scalar(d["rotor_inertia"], f"{where}.rotor_inertia")
             values["armature"] = reader.scalar(d["gear_ratio"], f"{where}.gear_ratio") ** 2 * rotor
             keys.add(f"joints[{i}].drive.armature", f"{where}.rotor_inertia")
-        out.append(Drive(**values))
-    return out
+        return Drive(**values)
+
+    return reader.per_joint(value, "drives", n, "a drive", drive)
 
 
 def check_unlocked(joints, locked) -> None:

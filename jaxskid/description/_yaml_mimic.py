@@ -12,7 +12,6 @@ a loop; a chain is composed), and its errors name ``mimic[i]``.
 from __future__ import annotations
 
 from ..model._mimic import Mimic
-from ..model._validate import describe
 from ._keymap import KeyMap
 from ._yaml_values import ValueReader
 
@@ -22,22 +21,14 @@ _KEYS = ("joint", "multiplier", "offset")
 def read_mimics(reader: ValueReader, value, n: int, keys: KeyMap) -> list[Mimic | None]:
     """One :class:`Mimic` or ``None`` per joint from the ``mimic`` list ``value`` (``None``: no mimic
     joints); records in ``keys`` where each came from."""
-    if value is None:
-        return [None] * n
-    if not isinstance(value, list) or len(value) != n:
-        raise reader.error("mimic", f"expected a list of {n} entries (null or the joint followed, per joint), "
-                                    f"got {describe(value)}")
-    out: list[Mimic | None] = []
-    for i, entry in enumerate(value):
-        where = f"mimic[{i}]"
-        if entry is None:
-            out.append(None)
-            continue
+
+    def mimic(entry, where: str, i: int) -> Mimic:
         if isinstance(entry, str):
             entry = {"joint": entry}
         d = reader.mapping(entry, where, _KEYS, required=("joint",))
         joint = reader.name_value(d["joint"], f"{where}.joint")
         numbers = [reader.scalar(d.get(k, v), f"{where}.{k}") for k, v in (("multiplier", 1), ("offset", 0))]
         keys.add(f"joints[{i}].mimic", where)
-        out.append(Mimic(joint, *numbers))
-    return out
+        return Mimic(joint, *numbers)
+
+    return reader.per_joint(value, "mimic", n, "the joint followed", mimic)

@@ -77,6 +77,16 @@ class ValueReader:
                 raise self.error(f"{where}.{key}", "required key is missing")
         return value
 
+    def per_joint(self, value, key: str, n: int, what: str, entry) -> list:
+        """One ``entry(item, where, i)`` or ``None`` per joint from the list ``value`` under ``key`` (``None``:
+        ``None`` for every joint; a ``null`` item: ``None`` for that joint); ``what`` names an item for the
+        error of a list of the wrong length."""
+        if value is None:
+            return [None] * n
+        if not isinstance(value, list) or len(value) != n:
+            raise self.error(key, f"expected a list of {n} entries ({what} or null per joint), got {describe(value)}")
+        return [None if item is None else entry(item, f"{key}[{i}]", i) for i, item in enumerate(value)]
+
     def name_value(self, value, where) -> str:
         if not isinstance(value, str) or not value.strip():
             raise self.error(where, f"expected a non-empty name, got {describe(value)}")
