@@ -17,11 +17,13 @@ values that differ from the URDF's (which has none). The script goes through wha
    filtering and central differences (:func:`jaxskid.estimate_derivatives`).
 4. **Identification** of the base parameters (inertial and drive parameters together) by ordinary and weighted
    least squares, of all standard parameters by the physically consistent fit (every body's pseudo-inertia
-   positive definite, armature and friction non-negative), and, without accelerations, from the energy
-   balance over windows of 0.1 s (:func:`jaxskid.energy_balance`). The energy model gives one equation per
-   window against six per sample, and its stacked regressor here is conditioned about 1e6 against the
-   torque model's 1e2: the measurement noise (the torque noise integrated into the work above all), amplified
-   by it, leaves its validation error far above the torque model's. An excitation designed for the energy regressor itself is what it would need.
+   positive definite, armature and friction non-negative), and, without accelerations, from the balances
+   over windows of 0.1 s. The momentum balance (:func:`jaxskid.momentum_balance`: the equations of motion
+   integrated over each window, six equations per window, from positions and filtered velocities only)
+   validates as well as the torque model. The energy balance (:func:`jaxskid.energy_balance`) gives one
+   equation per window, and its stacked regressor here is conditioned about 1e6 against the torque model's
+   1e2: the torque noise integrated into the work, amplified by it, leaves its validation error 1e2-1e3 times
+   the noise.
 5. **Validation** on another trajectory (another optimised excitation): predicted against measured torque,
    RMS error per joint against the noise's RMS; figures in the output directory.
 """
@@ -47,7 +49,8 @@ DRIVES = {  # per joint: armature [kg m^2], viscous [N m s], Coulomb [N m], offs
     "fc": [4.0, 4.0, 3.0, 1.0, 1.0, 0.8],
     "fo": [0.3, -0.2, 0.2, 0.05, -0.05, 0.02],
 }
-QUANTITIES = ["regressor", "kinetic_energy_regressor", "potential_energy_regressor", "friction_power_regressor"]
+QUANTITIES = ["regressor", "kinetic_energy_regressor", "potential_energy_regressor", "friction_power_regressor",
+              "momentum_regressor"]
 PERIOD, HARMONICS, SAMPLES = 10.0, 5, 10  # excitation: period [s], harmonics, samples in the design's W
 RATE, PERIODS = 200.0, 3  # measurement: Hz, periods recorded
 ENCODER, NOISE = 1e-4, 0.01  # rad per count; torque noise, fraction of each joint's RMS torque
@@ -104,11 +107,14 @@ def identify_all(dyn, robot, t, q_measured, tau_measured, base):
     window = int(0.1 * RATE)
     balance = jaxskid.energy_balance(dyn, t[keep], q[keep], qd[keep], tau, window=window)
     energy = jaxskid.identify(base.reduce(balance.y), balance.work, jaxskid.LeastSquares())
+    impulses = jaxskid.momentum_balance(dyn, t[keep], q[keep], qd[keep], tau, window=window)
+    momentum = jaxskid.identify(base.reduce(impulses.y), impulses.work, jaxskid.LeastSquares())
     return {
         "least squares": lambda yv: base.reduce(yv) @ ols.params,
         "weighted least squares": lambda yv: base.reduce(yv) @ wls.params,
         "physically consistent": lambda yv: yv @ consistent.params,
         "energy balance": lambda yv: base.reduce(yv) @ energy.params,
+        "momentum balance": lambda yv: base.reduce(yv) @ momentum.params,
     }, consistent.params, len(tau), len(balance.work)
 
 
@@ -174,7 +180,7 @@ def main(out_dir=None, seed=0, steps=150) -> dict:
           f"{design.initial_best:.0f} (best random) -> {design.value:.1f} (optimised), "
           f"{design.initial_median / design.value:.0f}x smaller")
     print(f"measurements: {len(t)} samples at {RATE:.0f} Hz, encoder {ENCODER} rad, torque noise "
-          f"{NOISE:.0%} of RMS; {rows} filtered samples, {windows} energy windows")
+          f"{NOISE:.0%} of RMS; {rows} filtered samples, {windows} balance windows")
     for name, r in ratio.items():
         print(f"validation RMS error / noise RMS, {name:>22}: {np.round(r, 2).tolist()}")
     print(f"physically consistent fit: pseudo-inertias positive definite {pseudo_pd}, "

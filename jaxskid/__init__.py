@@ -29,7 +29,7 @@ from .apps._identification import (
     PhysicallyConsistent, Standard, WeightedLeastSquares, base_parameters, fit, identify, physically_consistent,
     quantity_loss, trajectory_loss,
 )
-from .apps._energy_id import EnergyBalance, energy_balance
+from .apps._energy_id import EnergyBalance, energy_balance, momentum_balance
 from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
 from .apps._excitation import ExcitationResult, FourierTrajectory, design_excitation
 from .apps._parameterizations import nearest_consistent
@@ -144,6 +144,7 @@ __all__ = [
     "design_excitation",
     "EnergyBalance",
     "energy_balance",
+    "momentum_balance",
     "spatial_to_body",
     "symbol",
 ]

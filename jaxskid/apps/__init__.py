@@ -10,7 +10,7 @@ from ._control import (
     mixed_regressor,
     reference_derivatives,
 )
-from ._energy_id import EnergyBalance, energy_balance
+from ._energy_id import EnergyBalance, energy_balance, momentum_balance
 from ._excitation import ExcitationResult, FourierTrajectory, design_excitation
 from ._field import Controller, HeldInput, vector_field
 from ._identification import (
@@ -47,7 +47,7 @@ __all__ = [
     "PhysicallyConsistent", "SaveAt", "SemiImplicitEuler",
     "SlotineLi", "Standard", "Trajectory", "WeightedLeastSquares", "base_parameters", "fit", "identify",
     "mixed_regressor", "physically_consistent", "quantity_loss", "reference_derivatives", "rollout", "self_check",
-    "trajectory_loss", "vector_field", "EnergyBalance", "energy_balance",
+    "trajectory_loss", "vector_field", "EnergyBalance", "energy_balance", "momentum_balance",
     "Validation", "estimate_derivatives", "lowpass", "nearest_consistent", "parallel_filter", "plot_validation",
     "quantize", "validate", "ExcitationResult", "FourierTrajectory", "design_excitation",
 ]

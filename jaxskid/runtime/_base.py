@@ -12,7 +12,9 @@ from __future__ import annotations
 from collections.abc import Collection, Mapping, Sequence
 
 import jax
+import jax.numpy as jnp
 
+from . import _free_flyer as _ff
 from .._errors import RequestError
 from ..model._parameters import ParameterLayout
 from ._parameters import HostParameters, param_array
@@ -36,6 +38,8 @@ class QuantitySet:
             that names a quantity that exists but was not made.
         driven: the joints that have a drive (:class:`jaxskid.Drive`): ``tau = M qdd + C qd + Q_grav`` plus
             their armature, friction and offset.
+        floating_base: whether the robot's root is a free-flyer: ``q`` is then ``(p, quat, q_j)`` (``nq = 7 + n``)
+            and velocities ``(omega, v, qd_j)`` (``nv = 6 + n``); see :mod:`jaxskid.runtime._free_flyer`.
     """
 
     _made = "made"
@@ -52,6 +56,7 @@ class QuantitySet:
         signatures: Mapping[str, tuple[Sequence[str], Sequence[int]]],
         catalogue: Collection[str] = (),
         driven: Sequence[str] = (),
+        floating_base: bool = False,
     ):
         self.robot_name: str = robot_name
         self.driven: tuple[str, ...] = tuple(driven)
@@ -62,6 +67,11 @@ class QuantitySet:
         self.parameters: tuple[str, ...] = layout.names
         self.defaults: dict[str, float] = {k: layout.defaults[k] for k in layout.names if k in layout.defaults}
         self.n_dof: int = len(self.joint_names)
+        self.floating_base: bool = bool(floating_base)
+        self.nq: int = self.n_dof + (7 if floating_base else 0)
+        """The size of ``q``."""
+        self.nv: int = self.n_dof + (6 if floating_base else 0)
+        """The size of ``qd``, ``qdd`` and ``tau``."""
         self._signatures = {k: (tuple(a), tuple(s)) for k, (a, s) in signatures.items()}
         self._catalogue = frozenset(catalogue)
         self._host = HostParameters(layout)
@@ -77,6 +87,16 @@ class QuantitySet:
             return self._signatures[name]
         except KeyError:
             raise self._missing(name) from None
+
+    def integrate(self, q, v, dt=1.0) -> jax.Array:
+        """The configuration reached from ``q`` ``(..., nq)`` at the constant velocity ``v`` ``(..., nv)`` after
+        ``dt``: ``g exp(dt V)`` for a floating base (Pinocchio's ``integrate``), ``q + dt v`` for joints."""
+        return _ff.integrate(jnp.asarray(q), jnp.asarray(v), dt, self.floating_base)
+
+    def difference(self, q0, q1) -> jax.Array:
+        """The velocity ``v`` ``(..., nv)`` with ``integrate(q0, v, 1) = q1``: ``log(g0^-1 g1)`` for a floating
+        base (Pinocchio's ``difference``, with the twist as (omega, v)), ``q1 - q0`` for joints."""
+        return _ff.difference(jnp.asarray(q0), jnp.asarray(q1), self.floating_base)
 
     def default_params(self) -> dict[str, float]:
         """Parameter name -> default value, for the parameters that have one."""

@@ -80,6 +80,7 @@ class Dynamics(QuantitySet):
             signatures={k: (m["args"], m["shape"]) for k, m in quantities.items()},
             catalogue=catalogue,
             driven=meta.get("driven", ()),
+            floating_base=meta.get("floating_base", False),
         )
         self.source = source
         self.path = path

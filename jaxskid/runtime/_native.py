@@ -75,7 +75,7 @@ def _metadata_fields(meta: Mapping) -> dict:
         robot_name=meta["robot"], joint_names=meta["joint_names"], frame_names=meta["frame_names"],
         end_effectors=meta["end_effectors"], layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
         signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
-        driven=meta.get("driven", ()),
+        driven=meta.get("driven", ()), floating_base=meta.get("floating_base", False),
     )
 
 
