@@ -6,6 +6,7 @@ from ._errors import (
 from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
 from .model._drive import Drive
 from .model._robot import Frame, Joint, JointLimits, Mimic, Robot, spatial_to_body, symbol
+from .model._constraint import FrameContact, LoopClosure, PointContact
 from .model._standard import params_from_standard, standard_parameter_names, standard_params
 from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
 from .lowering._cache import cache_dir
@@ -18,6 +19,7 @@ from .runtime._native import NativeDynamics
 from . import codegen
 from .description._urdf import read_urdf
 from .runtime._forward import forward_dynamics, mass_matrix_condition
+from .runtime._constrained import Baumgarte, constrained_forward_dynamics, constrained_inverse_dynamics
 from .apps._field import Controller, vector_field
 from .apps._integrators import RK4, SemiImplicitEuler
 from .apps._saving import Checkpoint, SaveAt
@@ -31,6 +33,7 @@ from .apps._identification import (
 )
 from .apps._energy_id import EnergyBalance, energy_balance, momentum_balance
 from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
+from .apps._contact import GroundContact
 from .apps._excitation import ExcitationResult, FourierTrajectory, design_excitation
 from .apps._parameterizations import nearest_consistent
 from .apps._signals import estimate_derivatives, lowpass, parallel_filter, quantize
@@ -67,6 +70,12 @@ __all__ = [
     "Joint",
     "JointLimits",
     "Mimic",
+    "PointContact",
+    "FrameContact",
+    "LoopClosure",
+    "Baumgarte",
+    "constrained_forward_dynamics",
+    "constrained_inverse_dynamics",
     "ModelError",
     "NativeDynamics",
     "Options",
@@ -110,6 +119,7 @@ __all__ = [
     "Checkpoint",
     "vector_field",
     "ComputedTorque",
+    "GroundContact",
     "PDGravity",
     "SlotineLi",
     "mixed_regressor",

@@ -34,7 +34,9 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, dr
     ``J_fc`` (Coulomb friction) and ``J_fo`` (torque offset), default 0 (for URDF, ``J_fv`` and ``J_fc``
     default to the joint's ``<dynamics damping friction>``; a YAML ``drives`` entry keeps its values).
     Further keyword options go to the reader (for URDF: ``symbolic_inertia``, ``gravity``, ``end_effectors``,
-    ``mimic``: couple the ``<mimic>`` joints, whose positions then follow the independent joints).
+    ``mimic``: couple the ``<mimic>`` joints, whose positions then follow the independent joints;
+    ``floating_base``: make the root link a free-flyer base body, :attr:`Robot.floating_base`; a YAML file says so
+    with its own ``floating_base: true`` key).
     """
     p = Path(path)
     ext = p.suffix.lower()

@@ -314,9 +314,11 @@ def test_every_quantity_is_derived_in_the_coordinates_or_refused(tmp_path):
     pair = [CASES["prismatic"][0], ("j2", "revolute", "l1", "l2", "0.3 0 0", "0 0.1 0", "0 1 0"),
             ("j3", "revolute", "l2", "l3", "0.3 0 0", "0 0 0", "1 0 0", ("j1", 0.5, 0.1))]
     robot = jaxskid.load(write_urdf(tmp_path / "pair.urdf", pair), mimic=True)
+    robot = robot.with_constraints([jaxskid.PointContact("l3")])  # and the constraints' quantities
     eqs = jaxskid.derive(robot, "all")  # derive checks every quantity's size against its shape
     n, nb = robot.n_dof, robot.n_bodies
     assert set(eqs.quantities) == set(jaxskid.QUANTITIES)
+    assert eqs.quantities["constraint_jacobian"].shape == (3, n)
     assert eqs.quantities["system_jacobian"].shape == (6 * nb, n) and eqs.quantities["body_twist"].shape == (nb, 6)
     assert eqs.quantities["inverse_dynamics_vjp"].shape == (2 * n + len(robot.parameters),)
     assert all(len(eqs.arguments[a].symbols) == n for a in ("q", "qd", "qdd", "q3d", "q4d", "tau", "cotangent"))

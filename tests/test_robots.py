@@ -20,7 +20,8 @@ QUANTITIES = ["mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dyn
 
 def test_there_are_seed_robots():
     names = {p.stem for p in ROBOTS}
-    assert {"single_pendulum", "double_pendulum", "arm_2r", "prr", "hopping_leg", "arm_3dof", "quadruped_12dof"} <= names
+    assert {"single_pendulum", "double_pendulum", "arm_2r", "prr", "hopping_leg", "arm_3dof", "quadruped_12dof",
+            "four_bar"} <= names
 
 
 @pytest.mark.parametrize("path", ROBOTS, ids=lambda p: p.stem)

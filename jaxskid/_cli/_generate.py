@@ -67,7 +67,7 @@ def _first_calls(dyn) -> float:
     t0 = time.perf_counter()
     for name in dyn.quantities:
         args, _ = dyn.signature(name)
-        state = [np.zeros((len(dyn.end_effectors), 6) if a.startswith("wrench") else dyn.n_dof) for a in args]
+        state = [np.zeros(dyn.argument_shape(a)) for a in args]
         value = getattr(dyn, name)(*state)
         for leaf in (value.values() if isinstance(value, dict) else [value]):
             leaf.block_until_ready()

@@ -3,6 +3,7 @@ saved and checkpointed, diffrax solvers), parameter identification (base paramet
 physically consistent fits with optax, excitation trajectories), control laws (computed torque, PD + gravity, Slotine–Li) and the
 numeric self-check of a lowered model."""
 
+from ._contact import GroundContact
 from ._control import (
     ComputedTorque,
     PDGravity,
@@ -42,7 +43,7 @@ from ._simulate import Trajectory, rollout
 from ._validation import Validation, plot_validation, validate
 
 __all__ = [
-    "RK4", "Adam", "BaseParameters", "Checkpoint", "ComputedTorque", "Controller", "DCMotors", "Estimate",
+    "RK4", "Adam", "BaseParameters", "Checkpoint", "ComputedTorque", "Controller", "GroundContact", "DCMotors", "Estimate",
     "FitResult", "GradientDescent", "GradientFit", "HeldInput", "LeastSquares", "LogCholesky", "PDGravity",
     "PhysicallyConsistent", "SaveAt", "SemiImplicitEuler",
     "SlotineLi", "Standard", "Trajectory", "WeightedLeastSquares", "base_parameters", "fit", "identify",

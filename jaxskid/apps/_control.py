@@ -49,7 +49,9 @@ def _needs(dyn: Dynamics, names, who: str) -> None:
 
 
 def _split(x):
-    n = x.shape[-1] // 2
+    """``(q, qd)`` of a state ``x``: ``q`` is its first ``(len(x) + 1) // 2`` entries (``nq = nv + 1`` with a
+    floating base, ``nq = nv`` without)."""
+    n = (x.shape[-1] + 1) // 2
     return x[:n], x[n:]
 
 

@@ -5,7 +5,10 @@ controller (``()`` if none), and
 
     dq/dt = qd,    dqd/dt = qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q)),    dz/dt = h(t, x, z),
 
-with ``x = (q, qd)`` concatenated ``(2n,)`` and ``tau`` from the controls: an array held constant over each
+with ``x = (q, qd)`` concatenated ``(2n,)`` and ``tau`` from the controls. With a floating base ``q`` is
+``(p, quat, q_j)`` ``(nq,)`` and ``qd`` the velocity ``(omega, v, qd_j)`` ``(nv,)``: ``dq/dt`` is then
+:func:`jaxskid.runtime._free_flyer.configuration_rate` (``dp/dt = R v``, ``dquat/dt = quat (omega, 0) / 2``),
+and ``x`` is ``(nq + nv,)``, its first ``(len(x) + 1) // 2`` entries ``q`` in either case. The controls are: an array held constant over each
 step of a grid ``t_k = k dt``, a policy ``tau(t, x)``, a :class:`Controller` ``(tau, dz/dt)(t, x, z)``, or a
 controller fed an input array held over each step (:class:`HeldInput`: ``(tau, dz/dt)(t, x, z, u_k)``, e.g. the
 voltages of :class:`jaxskid.DCMotors`).
@@ -24,7 +27,11 @@ import jax.numpy as jnp
 from .._errors import RequestError, ShapeError
 from ..runtime._batching import float_arrays
 from ..runtime._dynamics import Dynamics
+from ..runtime._constrained import (
+    CONSTRAINT_QUANTITIES, Baumgarte, constrained_accelerations, options, require_constraints,
+)
 from ..runtime._forward import accelerations, require_solver
+from ..runtime._free_flyer import configuration_rate
 
 
 class Controller:
@@ -84,12 +91,23 @@ def as_controls(controls) -> tuple[Controller | None, jax.Array | None]:
 
 
 def dynamics_field(dyn: Dynamics, controller: Controller | None, p: jax.Array, batched: bool,
-                   autodiff: str = "forward") -> Callable:
+                   autodiff: str = "forward", constraints: tuple | None = None) -> Callable:
     """``f(t, y, u_k) -> (dy/dt, tau)`` for ``y = (q, qd, z)``; ``u_k`` is the held row ``(n,)`` of an array:
     the torque without a controller, the controller's input with one (:class:`HeldInput`); else ``None``.
     ``batched``: whether ``f`` will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`);
-    ``autodiff``: how the accelerations are differentiated (:func:`jaxskid.runtime._implicit.differentiable`)."""
-    qdd = accelerations(dyn, batched, autodiff)
+    ``autodiff``: how the accelerations are differentiated (:func:`jaxskid.runtime._implicit.differentiable`);
+    ``constraints``: ``(stabilization, regularization)`` of a constrained robot (:func:`constraint_forces`), whose
+    accelerations are then :func:`jaxskid.constrained_forward_dynamics`'.
+    ``f.rate(q, v)`` is ``dq/dt`` at the velocity ``v`` (``v`` itself for a fixed base), for an integrator that
+    moves the positions with an updated velocity (:class:`jaxskid.SemiImplicitEuler`)."""
+    if constraints is None:
+        qdd = accelerations(dyn, batched, autodiff)
+    else:
+        qdd = constrained_accelerations(dyn, batched, *constraints)
+    floating = dyn.floating_base
+
+    def rate(q, v):
+        return configuration_rate(q, v, floating)
 
     def f(t, y, u_k):
         q, qd, z = y
@@ -99,9 +117,29 @@ def dynamics_field(dyn: Dynamics, controller: Controller | None, p: jax.Array, b
             tau, zdot = controller(t, jnp.concatenate([q, qd]), z)
         else:
             tau, zdot = controller(t, jnp.concatenate([q, qd]), z, u_k)
-        return (qd, qdd(q, qd, tau, p), zdot), tau
+        return (rate(q, qd), qdd(q, qd, tau, p), zdot), tau
 
+    f.rate = rate
     return f
+
+
+def constraint_forces(dyn: Dynamics, stabilization, regularization: float, what: str) -> tuple | None:
+    """``None`` for a robot without lowered constraint quantities; else ``(stabilization, regularization)``,
+    checked, for :func:`dynamics_field` (:func:`jaxskid.constrained_forward_dynamics` gives their meaning)."""
+    if not set(CONSTRAINT_QUANTITIES) & set(dyn.quantities):
+        return None
+    require_constraints(dyn, what)
+    return options(stabilization, regularization)
+
+
+def with_input(f: Callable, u_k) -> Callable:
+    """``(t, y) -> f(t, y, u_k)``, keeping ``f.rate``: the field one step of an integrator sees."""
+
+    def g(t, y):
+        return f(t, y, u_k)
+
+    g.rate = f.rate
+    return g
 
 
 def held(u: jax.Array, grid: jax.Array, t) -> jax.Array:
@@ -115,7 +153,8 @@ def held(u: jax.Array, grid: jax.Array, t) -> jax.Array:
     return u[jnp.clip(k, 0, u.shape[0] - 1)]
 
 
-def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
+def vector_field(dyn: Dynamics, controls, params=None, *, dt=None,
+                 stabilization: Baumgarte | None = Baumgarte(), regularization: float = 0.0) -> Callable:  # noqa: B008
     """The robot's equations of motion as a diffrax vector field ``f(t, y, args) -> dy/dt``.
 
     ``diffrax.ODETerm(vector_field(dyn, controls))`` solves ``M qdd + C qd + Q_grav = tau`` with any diffrax
@@ -129,6 +168,7 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
             :class:`Controller`; or a :class:`HeldInput` (its inputs held over the same grid).
         params: as for :func:`jaxskid.forward_dynamics`: ``None``, a dict, or one vector ``(n_params,)``.
         dt: the grid's step in seconds; needed for (only for) array controls.
+        stabilization, regularization: for a robot with constraints, as for :func:`jaxskid.rollout`.
 
     Returns:
         ``f(t, y, args)``. ``y`` is the state ``x = (q, qd)`` ``(2n,)``, and the pair ``(x, z)`` for a
@@ -136,7 +176,7 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
         form. One state; ``jax.vmap`` it, or the solve, for a batch.
     """
     require_solver(dyn, "vector_field")
-    n = dyn.n_dof
+    n, nq = dyn.nv, dyn.nq
     controller, u = as_controls(controls)
     if u is not None:
         (u,), dtype = float_arrays([u])
@@ -147,14 +187,15 @@ def vector_field(dyn: Dynamics, controls, params=None, *, dt=None) -> Callable:
         grid = jnp.asarray(dt, dtype) * jnp.arange(u.shape[0] + 1, dtype=dtype)
     else:
         dtype = jnp.result_type(float)
-    f = dynamics_field(dyn, controller, dyn.param_vector(params, dtype), batched=False)
+    constraints = constraint_forces(dyn, stabilization, regularization, "vector_field")
+    f = dynamics_field(dyn, controller, dyn.param_vector(params, dtype), batched=False, constraints=constraints)
     stateful = controller is not None and bool(
-        jax.tree.leaves(jax.eval_shape(controller.init, jax.ShapeDtypeStruct((2 * n,), dtype)))
+        jax.tree.leaves(jax.eval_shape(controller.init, jax.ShapeDtypeStruct((nq + n,), dtype)))
     )
 
     def field(t, y, args):
         x, z = y if stateful else (y, ())
-        (dq, dqd, dz), _ = f(t, (x[:n], x[n:], z), None if u is None else held(u, grid, t))
+        (dq, dqd, dz), _ = f(t, (x[:nq], x[nq:], z), None if u is None else held(u, grid, t))
         dx = jnp.concatenate([dq, dqd])
         return (dx, dz) if stateful else dx
 

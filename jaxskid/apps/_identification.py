@@ -82,11 +82,19 @@ class BaseParameters:
         return out
 
 
-def random_states(n: int, samples: int, seed: int = 0, *, scale: float = 1.0) -> tuple[np.ndarray, ...]:
-    """``(q, qd, qdd)``, each ``(samples, n)``: q uniform in [-pi, pi], qd and qdd standard normal x scale."""
+def random_states(n: int, samples: int, seed: int = 0, *, scale: float = 1.0,
+                  floating_base: bool = False) -> tuple[np.ndarray, ...]:
+    """``(q, qd, qdd)``, each ``(samples, n)``: q uniform in [-pi, pi], qd and qdd standard normal x scale.
+    With ``floating_base``, q ``(samples, 7 + n)`` starts with a standard normal base position and a unit
+    quaternion uniform on the sphere, and qd, qdd ``(samples, 6 + n)`` with the base's twist and its rate."""
     rng = np.random.default_rng(seed)
     q = rng.uniform(-np.pi, np.pi, size=(samples, n))
-    return q, scale * rng.normal(size=(samples, n)), scale * rng.normal(size=(samples, n))
+    if not floating_base:
+        return q, scale * rng.normal(size=(samples, n)), scale * rng.normal(size=(samples, n))
+    quat = rng.normal(size=(samples, 4))
+    base = np.concatenate([rng.normal(size=(samples, 3)), quat / np.linalg.norm(quat, axis=1, keepdims=True)], axis=1)
+    nv = 6 + n
+    return np.concatenate([base, q], axis=1), scale * rng.normal(size=(samples, nv)), scale * rng.normal(size=(samples, nv))
 
 
 def base_parameters(
@@ -116,7 +124,7 @@ def base_parameters(
     if isinstance(source, Dynamics):
         if "regressor" not in source.quantities:
             raise RequestError(f"base_parameters needs the quantity regressor; lowered: {', '.join(source.quantities)}")
-        q, qd, qdd = random_states(source.n_dof, samples, seed)
+        q, qd, qdd = random_states(source.n_dof, samples, seed, floating_base=source.floating_base)
         y = source.regressor(q, qd, qdd, params)
     elif callable(source):
         if n_dof is None:

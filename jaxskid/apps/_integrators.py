@@ -36,7 +36,8 @@ class SemiImplicitEuler:
         q, qd, z = y
         qd1 = qd + dt * qdd
         z1 = jax.tree.map(lambda a, b: a + dt * b, z, zdot)
-        return (q + dt * qd1, qd1, z1), aux
+        rate = getattr(f, "rate", None)  # dq/dt at a velocity: a floating base's (jaxskid.apps._field)
+        return (q + dt * (qd1 if rate is None else rate(q, qd1)), qd1, z1), aux
 
 
 @dataclass(frozen=True)

@@ -88,7 +88,8 @@ def emit_c(layout: Layout) -> dict[str, str]:
     n_par = len(layout.parameters)
     head = comment(layout.header("C99", _calling(layout, cxx=False)), "//")
     h = [head, f"#ifndef JAXSKID_{S}_H", f"#define JAXSKID_{S}_H", "", "#ifdef __cplusplus", 'extern "C" {',
-         "#endif", "", f"#define {S}_N_DOF {layout.n_dof}", f"#define {S}_N_PARAMS {n_par}"]
+         "#endif", "", f"#define {S}_N_DOF {layout.n_dof}", f"#define {S}_NQ {layout.robot.nq}",
+         f"#define {S}_NV {layout.robot.nv}", f"#define {S}_N_PARAMS {n_par}"]
     for k in layout.kernels:
         h.append(f"#define {S}_{k.name.upper()}_SIZE {k.size}")
     h.append("")
@@ -160,7 +161,9 @@ def emit_cpp(layout: Layout) -> dict[str, str]:
     n_par = len(layout.parameters)
     head = comment(layout.header("C++", _calling(layout, cxx=True)), "//")
     h = [head, f"#ifndef JAXSKID_{S}_HPP", f"#define JAXSKID_{S}_HPP", "", "#include <array>", "",
-         f"namespace {s} {{", "", f"constexpr int n_dof = {layout.n_dof};", f"constexpr int n_params = {n_par};", "",
+         f"namespace {s} {{", "", f"constexpr int n_dof = {layout.n_dof};",
+         f"constexpr int nq = {layout.robot.nq};", f"constexpr int nv = {layout.robot.nv};",
+         f"constexpr int n_params = {n_par};", "",
          "// Parameter names and default values, in the order of p (NaN: no default).",
          f"extern const std::array<const char *, {n_par}> parameter_names;",
          f"extern const std::array<double, {n_par}> default_params;", ""]

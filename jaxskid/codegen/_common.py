@@ -138,11 +138,15 @@ class Layout:
         """What the runtime needs to call the generated functions, as plain JSON data: ``robot``,
         ``joint_names``, ``frame_names``, ``end_effectors``, ``parameters`` (the order of ``p``),
         ``defaults`` (name -> value, for the parameters that have one), ``quantities`` (name ->
-        ``args``, ``shape``, ``equation``, ``doc``) and, only for a robot with drives, ``driven`` (the names of
-        the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav)."""
+        ``args``, ``shape``, ``equation``, ``doc``), only for a robot with drives, ``driven`` (the names of
+        the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav),
+        and only for a floating base, ``floating_base: 1`` (``q`` has ``7 + n`` entries, velocities ``6 + n``; an
+        int, since the JAX module writes this as a Python literal)."""
         r = self.robot
         quantities = {n: self.eqs.quantities[n] for n in self.names}
         driven = {"driven": [r.joints[i].name for i in r.driven]} if r.driven else {}
+        if r.floating_base:
+            driven["floating_base"] = 1
         return {
             "robot": r.name,
             "joint_names": list(r.joint_names),

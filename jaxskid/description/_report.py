@@ -47,7 +47,8 @@ def describe(robot: Robot) -> str:
     value = _numeric(robot)
     gravity = ", ".join(value(g) for g in robot.gravity)
     lines = [f"robot {robot.name}: {robot.n_dof} joint(s), {len(robot.frames)} extra frame(s), "
-             f"{len(robot.parameters)} parameter(s); base {robot.base!r}; gravity ({gravity})", "", "joints"]
+             f"{len(robot.parameters)} parameter(s); {'floating ' if robot.floating_base else ''}base {robot.base!r}; "
+             f"gravity ({gravity})", "", "joints"]
     rows = []
     for i, j in enumerate(robot.joints):
         parent = robot.base if j.parent < 0 else robot.joints[j.parent].link
@@ -56,18 +57,26 @@ def describe(robot: Robot) -> str:
     lines += _table(("#", "joint", "type", "parent body", "body", "screw (omega, v), body frame"), rows)
     lines += ["", "bodies (at the default parameters)"]
     rows = []
-    for i, j in enumerate(robot.joints):
-        m6 = sp.Matrix(j.inertia)
+    bodies = [(i + 1, j.link, j.inertia) for i, j in enumerate(robot.joints)]
+    if robot.floating_base:  # the floating base is body 0
+        bodies.insert(0, (0, robot.base, robot.base_inertia))
+    for i, link, inertia in bodies:
+        m6 = sp.Matrix(inertia)
         mass = m6[5, 5]
         com = [m6[2, 4], m6[0, 5], m6[1, 3]]  # m c~ block: (m c)_x = M[2,4], (m c)_y = M[0,5], (m c)_z = M[1,3]
         com_text = "-" if mass == 0 else "(" + ", ".join(value(c / mass, "{:.4g}") for c in com) + ")"
-        rows.append((i + 1, j.link, value(mass), com_text))
+        rows.append((i, link, value(mass), com_text))
     lines += _table(("#", "body", "mass", "centre of mass, body frame"), rows)
     if robot.frames:
         lines += ["", "frames"]
         rows = [(f.name, robot.base if f.body < 0 else robot.joints[f.body].link,
                  "yes" if f.name in robot.end_effectors else "") for f in robot.frames]
         lines += _table(("frame", "on body", "end-effector"), rows)
+    if robot.constraints:
+        lines += ["", "constraints (world axes)"]
+        rows = [(k, type(c).__name__, f"{c.frames[0]} - {c.frames[1] or 'its anchor'}", ", ".join(c.axes))
+                for k, c in enumerate(robot.constraints)]
+        lines += _table(("#", "constraint", "holds", "axes"), rows)
     lines += ["", "parameters"]
     defaults = robot.default_params()
     if robot.parameters:

@@ -6,7 +6,9 @@ the numbers are then read through yourdfpy (without loading meshes).
 
 Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/parsers/urdf``):
 
-* the root link is welded to the world; its inertia is dropped and its name is ``Robot.base``;
+* the root link is welded to the world; its inertia is dropped and its name is ``Robot.base``; with
+  ``floating_base=True`` it is the free-flyer base body instead (Pinocchio's ``buildModelFromUrdf(path,
+  JointModelFreeFlyer())``), which keeps its inertia (10 parameters ``{root}_m, ...`` like every body's);
 * the frame of a child link is its joint's frame, ``B_i = origin(xyz, rpy)`` with
   ``R = Rz(yaw) Ry(pitch) Rx(roll)``; the screw is ``(a, 0)`` (revolute, continuous) or ``(0, a)``
   (prismatic), ``a`` the joint axis normalised to unit length;
@@ -30,7 +32,6 @@ from __future__ import annotations
 import io
 import math
 import os
-import re
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -43,9 +44,10 @@ from ..model import _lie as lie
 from ..model._fixed import lock_joint, merge_fixed
 from ..model._drive import Drive, drive_parameter_names
 from ..model._mimic import Mimic, follow_locks, resolve
-from ..model._robot import Joint, Robot, symbol
+from ..model._robot import Joint, Robot
 from ..model._validate import check_mass, check_positive_semidefinite
 from ._keymap import KeyMap
+from ._urdf_inertia import base_parameters, exact, inertial_parameters, link_inertia, root_inertia, rotation_translation
 from ._urdf_limits import NUMERIC_JOINT_ATTRIBUTES, joint_limits
 
 _JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed"}
@@ -62,6 +64,7 @@ def read_urdf(
     end_effectors: Sequence[str] | None = None,
     drives: bool = False,
     mimic: bool = False,
+    floating_base: bool = False,
 ) -> Robot:
     """Build a :class:`Robot` from the URDF file ``path``.
 
@@ -81,6 +84,8 @@ def read_urdf(
             ``<dynamics>`` (0 without it), mimic joints included (acting through the coupling).
         mimic: couple ``<mimic joint="j" multiplier="a" offset="b"/>`` joints, ``q = a q_j + b`` (else they
             are independent joints, with a :class:`~jaxskid.DescriptionWarning`).
+        floating_base: make the root link a free-flyer base body (:attr:`Robot.floating_base`): ``q`` is then
+            ``(x, y, z, qx, qy, qz, qw, joint positions)`` and velocities ``(omega, v, joint velocities)``.
 
     Returns:
         the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints, not locked or mimic.
@@ -92,12 +97,12 @@ def read_urdf(
     """
     source = os.fspath(path)
     try:
-        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic)
+        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base)
     except ModelError as err:
         raise err.located(source=source) from None
 
 
-def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic) -> Robot:
+def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base) -> Robot:
     data = _read_bytes(source)
     _check_document(_parse_xml(data))
     urdf = _load_yourdfpy(data).robot
@@ -110,14 +115,18 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic)
     requested = _check_end_effectors(end_effectors, links)
     # Weld fixed (and locked) links into their parent body first, with numeric inertias, so that with
     # symbolic_inertia the 10 parameters of each moving body describe the merged body.
-    joints, frames = merge_fixed(_joints(source, order, links, locked, mimics), [])
-    joints, defaults = _inertial_parameters(joints, symbolic_inertia)
+    base_inertia = root_inertia(floating_base, links[root_link])
+    joints, frames, base_inertia = merge_fixed(_joints(source, order, links, locked, mimics), [], base_inertia)
+    joints, defaults = inertial_parameters(joints, symbolic_inertia)
+    base_inertia, base_defaults = base_parameters(root_link, base_inertia, symbolic_inertia, joints)
+    defaults.update(base_defaults)
     if drives:
         joints, more = _drives(joints, {j.name: j for j in order})
         defaults.update(more)
     if requested is None:
         requested = _default_end_effectors(order, frames)
-    keys = KeyMap({"end_effectors": "end_effectors", "gravity": "gravity"})
+    keys = KeyMap({"end_effectors": "end_effectors", "gravity": "gravity", "floating_base": "floating_base",
+                   "base_inertia": f"link[name={root_link}].inertial"})
     for k, j in enumerate(joints):
         for part, key in (("origin", "origin"), ("screw", "axis"), ("name", "name"), ("link", "child")):
             keys.add(f"joints[{k}].{part}", f"joint[name={j.name}].{key}")
@@ -128,15 +137,16 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic)
     for k, f in enumerate(frames):
         keys.add(f"frames[{k}]", f"link[name={f.name}]")
     try:
-        return Robot.create(urdf.name, joints, gravity, frames, requested, defaults, base=root_link)
+        return Robot.create(urdf.name, joints, gravity, frames, requested, defaults, base=root_link,
+                            floating_base=floating_base, base_inertia=base_inertia)
     except ModelError as err:
         raise keys.relocate(err) from None
 
 
 def _mimics(order) -> dict[str, Mimic]:
     """The ``<mimic>`` of every moving joint, chains composed (:func:`jaxskid.model._mimic.resolve`)."""
-    given = {j.name: Mimic(j.mimic.joint, _exact(1.0 if j.mimic.multiplier is None else j.mimic.multiplier),
-                           _exact(j.mimic.offset or 0.0)) for j in order if j.mimic is not None and j.type != "fixed"}
+    given = {j.name: Mimic(j.mimic.joint, exact(1.0 if j.mimic.multiplier is None else j.mimic.multiplier),
+                           exact(j.mimic.offset or 0.0)) for j in order if j.mimic is not None and j.type != "fixed"}
     return resolve(given, {j.name: _JOINT_TYPES[j.type] for j in order}, lambda name: f"joint[name={name}].mimic")
 
 
@@ -147,11 +157,11 @@ def _joints(source, order, links, locked, mimics) -> list[Joint]:
     for k, j in enumerate(order):
         body[j.child] = k
         kind = _JOINT_TYPES[j.type]
-        m6 = _inertia(links[j.child].inertial)
+        m6 = link_inertia(links[j.child].inertial)
         joint = Joint(j.name, kind, body[j.parent], _pose(j.origin), _screw(kind, j.axis),
-                      sp.ImmutableMatrix(6, 6, [_exact(x) for x in m6.flat]), j.child, limits=joint_limits(j))
+                      sp.ImmutableMatrix(6, 6, [exact(x) for x in m6.flat]), j.child, limits=joint_limits(j))
         if j.name in locked:
-            joint = lock_joint(joint, _exact(locked[j.name]))
+            joint = lock_joint(joint, exact(locked[j.name]))
         elif mimics is not None and j.name in mimics:
             joint = replace(joint, mimic=mimics[j.name])
         elif mimics is None and j.mimic is not None and kind != "fixed":
@@ -160,19 +170,6 @@ def _joints(source, order, links, locked, mimics) -> list[Joint]:
                           DescriptionWarning, stacklevel=5)
         joints.append(joint)
     return joints
-
-
-def _inertial_parameters(joints: list[Joint], symbolic: bool) -> tuple[list[Joint], dict[str, float]]:
-    """With ``symbolic``, every body's inertia written with its 10 standard parameters, whose values
-    become the defaults; else the joints as they are."""
-    if not symbolic:
-        return joints, {}
-    out, defaults, owner = [], {}, {}
-    for j in joints:
-        names = _parameter_names(j.link, owner)
-        defaults.update({n: float(v) for n, v in zip(names, lie.standard_parameters(j.inertia))})
-        out.append(replace(j, inertia=lie.inertia_from_parameters(*(symbol(n) for n in names))))
-    return out, defaults
 
 
 def _drives(joints: list[Joint], urdf_joints: Mapping) -> tuple[list[Joint], dict[str, float]]:
@@ -442,23 +439,9 @@ def _walk_tree(links, joints) -> tuple[list, str]:
 # ---------------------------------------------------------------------------------------------- numbers
 
 
-def _exact(x) -> sp.Expr:
-    x = float(x)
-    return sp.Integer(int(x)) if x.is_integer() else sp.Float(x)
-
-
-def _rotation_translation(pose) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation (round-off next to -1, 0, 1 snapped, so that right angles stay exact) and translation."""
-    c = np.eye(4) if pose is None else np.asarray(pose, dtype=float)
-    r = c[:3, :3]
-    snapped = np.round(r)
-    r = np.where(np.abs(r - snapped) < 1e-14, snapped, r)
-    return r, c[:3, 3]
-
-
 def _pose(pose) -> sp.ImmutableMatrix:
-    r, p = _rotation_translation(pose)
-    return lie.pose(sp.Matrix(3, 3, [_exact(x) for x in r.flat]), [_exact(x) for x in p])
+    r, p = rotation_translation(pose)
+    return lie.pose(sp.Matrix(3, 3, [exact(x) for x in r.flat]), [exact(x) for x in p])
 
 
 def _screw(kind: str, axis) -> tuple:
@@ -466,30 +449,6 @@ def _screw(kind: str, axis) -> tuple:
         return (0,) * 6
     a = np.asarray(axis, dtype=float)
     a = a / np.linalg.norm(a)  # the file's axis need not be unit, as in urdfdom and Pinocchio
-    return lie.screw(kind, [_exact(x) for x in a])
+    return lie.screw(kind, [exact(x) for x in a])
 
 
-def _inertia(inertial) -> np.ndarray:
-    """The link's 6x6 mass-inertia in its own frame: the inertia about the centre of mass is rotated from
-    the <inertial> frame into the link frame, then moved to the link origin (parallel-axis theorem)."""
-    if inertial is None:  # URDF allows a link without <inertial>: massless, as in Pinocchio
-        return np.zeros((6, 6))
-    r, c = _rotation_translation(inertial.origin)
-    ic = r @ np.asarray(inertial.inertia, dtype=float) @ r.T
-    m6 = np.array(lie.spatial_inertia(float(inertial.mass or 0.0), c.tolist(), sp.Matrix(ic)), dtype=float)
-    return 0.5 * (m6 + m6.T)  # float round-off in the products breaks exact symmetry
-
-
-def _parameter_names(link: str, owner: dict[str, str]) -> list[str]:
-    """``{link}_m, ..., {link}_Izz`` with ``link`` made a valid (ASCII) identifier; ``owner`` maps the
-    prefixes already used to their links."""
-    prefix = re.sub(r"[^0-9A-Za-z_]", "_", link)
-    prefix = f"_{prefix}" if prefix[:1].isdigit() else prefix
-    if prefix in owner:
-        raise ModelError(
-            f"expected link names that stay distinct as identifiers, got {owner[prefix]!r} and {link!r} "
-            f"(both give parameters {prefix}_m, {prefix}_mcx, ...)",
-            where=f"link[name={link}].name",
-        )
-    owner[prefix] = link
-    return [f"{prefix}_{k}" for k in lie.STANDARD_PARAMETER_NAMES]

@@ -153,7 +153,9 @@ def robot_to_urdf(robot: Robot) -> str:
     """The URDF text of ``robot`` (its parameters at their defaults); see the module docstring."""
     robot = numeric_robot(robot)
     root = ET.Element("robot", name=robot.name)
-    ET.SubElement(root, "link", name=robot.base)
+    base = ET.SubElement(root, "link", name=robot.base)
+    if robot.floating_base:
+        _inertial(base, _array(robot.base_inertia), np.zeros(3))
     shifts = []
     for i, j in enumerate(robot.joints):
         x = _array(sp.Matrix(j.screw)).ravel()
@@ -190,6 +192,9 @@ def _header(robot: Robot) -> str:
     else:
         lines.append("     Joint limits are placeholders (effort 0, velocity 0): the model holds none.")
     lines += _drive_notes(robot)
+    if robot.floating_base:
+        lines.append(f"     The root link {robot.base!r} is a floating base (URDF has none): load with "
+                     "jaxskid.load(path, floating_base=True).")
     if not np.allclose(gravity, URDF_GRAVITY, rtol=0, atol=1e-15):
         lines.append(f"     Gravity {list(gravity)} (URDF has none): load with jaxskid.load(path, gravity=...).")
     return "\n".join(lines) + " -->\n"

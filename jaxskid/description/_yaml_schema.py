@@ -48,6 +48,8 @@ jaxskid keys
     drive here is driven without ``jaxskid.load(..., drives=True)``, which gives the others the parameters
     ``{joint}_Ia, {joint}_fv, {joint}_fc, {joint}_fo`` (default 0). ``mimic`` (per joint, ``null`` or
     ``{joint, multiplier, offset}``: it follows that joint, ``q = multiplier q_joint + offset``; :mod:`._yaml_mimic`).
+    ``constraints`` (contacts and loop closures on named frames: :mod:`._yaml_constraints`).
+    ``floating_base`` and ``base_inertia`` (a free-flyer base body and its mass-inertia: :mod:`._yaml_base`).
 
 Gravity. Skidy builds the base acceleration as ``Vd_0 = (0, -gravity_vector)`` and adds
 ``Q_grav = J^T Mb U Vd_0`` to ``M q2d + C qd`` (``src/skidy/kinematics_generator.py``), and its templates and
@@ -79,6 +81,8 @@ from ..model._validate import check_parents, describe
 from ._dh import dh_size, joint_variables, read_dh
 from ._keymap import KeyMap
 from ._wrenches import DescriptionExtras, end_effector_wrenches
+from ._yaml_base import read_floating_base
+from ._yaml_constraints import read_constraints
 from ._yaml_drives import check_unlocked, read_drives
 from ._yaml_file import load_mapping
 from ._yaml_mimic import read_mimics
@@ -90,7 +94,7 @@ _SKIDY_KEYS = (
     "assignments",
 )
 _JAXSKID_KEYS = ("name", "base", "joint_names", "link_names", "ee_names", "frames", "frame_order", "lock", "dh",
-                 "drives", "mimic")
+                 "drives", "mimic", "constraints", "floating_base", "base_inertia")
 _GEOMETRY_KEYS = ("joint_screw_coord", "body_ref_config", "representation")  # what a dh block replaces
 _DERIVATIVES = ("q", "qd", "q2d", "q3d", "q4d")
 _WRENCHES = ("WEE", "WDEE", "W2DEE")
@@ -189,6 +193,8 @@ class _Parser(ValueReader):
         name = self.name_value(d.get("name", _default_name(self.source)), "name")
         arguments = dict(name=name, joints=joints, gravity=gravity, frames=frames, end_effectors=ees,
                          defaults=defaults, base=base)
+        arguments["constraints"] = read_constraints(self, d.get("constraints"), self.keys)
+        arguments.update(read_floating_base(self, d, self.keys))
         return _Parsed(arguments, self.lock(), extras, self.keys)
 
     def check_keys(self) -> int:

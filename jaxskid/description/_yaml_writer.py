@@ -19,6 +19,7 @@ from sympy.printing.str import StrPrinter
 
 from .._errors import ModelError
 from ..model import _lie as lie
+from ..model._constraint import LoopClosure, PointContact
 from ..model._robot import Robot
 from ._yaml_file import SUFFIXES
 
@@ -84,6 +85,9 @@ def robot_to_dict(robot: Robot, *, rotations: str = "matrix") -> dict:
     out["joint_screw_coord"] = [[_value(e) for e in j.screw] for j in robot.joints]
     out["body_ref_config"] = [_pose(j.origin, rotations) for j in robot.joints]
     out["mass_inertia"] = [_rows(j.inertia) for j in robot.joints]
+    if robot.floating_base:
+        out["floating_base"] = True
+        out["base_inertia"] = _rows(robot.base_inertia)
     if robot.driven:
         out["drives"] = [None if j.drive is None else dict(zip(("armature", "viscous", "coulomb", "offset"),
                                                                map(_value, j.drive.values())))
@@ -103,8 +107,23 @@ def robot_to_dict(robot: Robot, *, rotations: str = "matrix") -> dict:
     default_order = [nm for nm in robot.end_effectors if nm in frame_names] + [f.name for f in others]
     if default_order != [f.name for f in robot.frames]:
         out["frame_order"] = [f.name for f in robot.frames]
+    if robot.constraints:
+        out["constraints"] = [_constraint(c, rotations) for c in robot.constraints]
     if robot.defaults:
         out["assignments"] = {k: v for k, v in robot.defaults}
+    return out
+
+
+def _constraint(c, rotations: str) -> dict:
+    """A ``constraints`` entry (:mod:`jaxskid.description._yaml_constraints`), its anchor written out."""
+    if isinstance(c, LoopClosure):
+        return {"loop_closure": list(c.frames), "kind": c.kind if isinstance(c.kind, str) else list(c.kind)}
+    if isinstance(c, PointContact):
+        out = {"point_contact": c.frame, "position": [_value(e) for e in c.position]}
+    else:
+        out = {"frame_contact": c.frame, "pose": _pose(c.pose, rotations)}
+    if c.axes != c.own_axes:
+        out["axes"] = list(c.axes)
     return out
 
 

@@ -3,7 +3,8 @@
 The order of :data:`QUANTITIES` is the canonical order of a request (:func:`jaxskid.equations.resolve`),
 and through it part of the cache key of every generated module: append new quantities at the end.
 Each entry names the arguments, the output shape and the builder: a function of a
-:class:`jaxskid.symbolic.Derivation` that returns the outputs, flat and row-major.
+:class:`jaxskid.symbolic.Derivation` that returns the outputs, flat and row-major. Shapes are in the robot's
+velocity space: ``nv = 6 + n`` with a floating base (its twist or wrench first), ``n`` otherwise.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from types import MappingProxyType
 
 from .. import symbolic as sym
 from ..model._robot import Robot
+from ..model._constraint import n_rows
 from ..model._standard import n_standard
 from ..symbolic import Derivation, Terms
 
@@ -34,6 +36,8 @@ class QuantitySpec:
     lagrange: Callable[[Derivation], list] | None = None
     """The builder of the Euler-Lagrange route (``Options(route="lagrange")``), where that route derives the
     quantity its own way; ``None``: both routes build it with ``build``."""
+    needs_constraints: bool = False
+    """Whether it exists only for a robot with constraints (:attr:`Robot.constraints`)."""
 
     def builder(self, route: str) -> Callable[[Derivation], list]:
         """The builder of ``route`` (``"screw"`` or ``"lagrange"``)."""
@@ -70,11 +74,11 @@ def _end_effectors(d: Derivation, fn) -> list:
 
 
 def _ee_matrices(d: Derivation, fn) -> list:
-    """``fn(d, name)``, n columns of 6, as a 6 x n matrix for every end-effector, stacked."""
+    """``fn(d, name)``, nv columns of 6, as a 6 x nv matrix for every end-effector, stacked."""
     out = []
     for name in d.robot.end_effectors:
         cols = fn(d, name)
-        out.append([[cols[j][k] for j in range(d.n)] for k in range(6)])
+        out.append([[c[k] for c in cols] for k in range(6)])
     return _flat(out)
 
 
@@ -85,11 +89,11 @@ def _wrenches(d: Derivation, order: int) -> dict:
 
 # ---------------------------------------------------------------------------------------------- shapes
 def _square(r: Robot) -> tuple[int, ...]:
-    return (r.n_dof, r.n_dof)
+    return (r.nv, r.nv)
 
 
 def _vector(r: Robot) -> tuple[int, ...]:
-    return (r.n_dof,)
+    return (r.nv,)
 
 
 def _per_body(r: Robot) -> tuple[int, ...]:
@@ -101,11 +105,11 @@ def _per_ee(r: Robot) -> tuple[int, ...]:
 
 
 def _ee_jacobian(r: Robot) -> tuple[int, ...]:
-    return (len(r.end_effectors), 6, r.n_dof)
+    return (len(r.end_effectors), 6, r.nv)
 
 
 def _system(r: Robot) -> tuple[int, ...]:
-    return (6 * r.n_bodies, r.n_dof)
+    return (6 * (r.n_bodies + r.floating_base), r.nv)
 
 
 def _poses(r: Robot) -> tuple[int, ...]:
@@ -117,15 +121,27 @@ def _scalar(r: Robot) -> tuple[int, ...]:
 
 
 def _vjp(r: Robot) -> tuple[int, ...]:
-    return (2 * r.n_dof + len(r.parameters),)
+    return (r.nq + r.nv + len(r.parameters),)
 
 
 def _regressor(r: Robot) -> tuple[int, ...]:
-    return (r.n_dof, n_standard(r))
+    return (r.nv, n_standard(r))
 
 
 def _standard_row(r: Robot) -> tuple[int, ...]:
     return (n_standard(r),)
+
+
+def _centroidal(rows: int) -> Callable[[Robot], tuple[int, ...]]:
+    return lambda r: (rows, r.nv)
+
+
+def _constraint_rows(r: Robot) -> tuple[int, ...]:
+    return (n_rows(r.constraints),)
+
+
+def _constraint_matrix(r: Robot) -> tuple[int, ...]:
+    return (n_rows(r.constraints), r.nv)
 
 
 # ---------------------------------------------------------------------------------------------- time derivatives
@@ -269,7 +285,8 @@ _CATALOGUE = (
     QuantitySpec(
         "system_jacobian", ("q",), _system, lambda d: _flat(sym.system_jacobian(d)),
         "V = J qd, J = (I - A)^-1 X",
-        "Body-fixed system Jacobian: block row i is body i's body Jacobian (rows (omega, v) in body i's frame).",
+        "Body-fixed system Jacobian: block row i is body i's body Jacobian (rows (omega, v) in body i's frame); "
+        "a floating base's block row (I_6, 0) comes first.",
     ),
     QuantitySpec(
         "system_jacobian_dot", ("q", "qd"), _system, lambda d: _flat(sym.system_jacobian_dot(d)),
@@ -301,7 +318,7 @@ _CATALOGUE = (
         "inverse_dynamics_vjp", ("q", "qd", "qdd", "cotangent"), _vjp, sym.inverse_dynamics_vjp,
         "(w^T dtau/dq, w^T dtau/dqd, w^T dtau/dp)",
         "Vector-Jacobian product of inverse dynamics at fixed qdd, w = cotangent: the gradients of w^T tau "
-        "with respect to q, qd and the parameters, concatenated (2 n + n_params entries), by a symbolic "
+        "with respect to q, qd and the parameters, concatenated (nq + nv + n_params entries), by a symbolic "
         "reverse sweep of the Newton-Euler program. It differentiates forward dynamics in rollouts.",
     ),
     QuantitySpec(
@@ -343,6 +360,44 @@ _CATALOGUE = (
         "Power of the drives' friction and offset as a row in the standard parameters pi (zero for the "
         "bodies' and the armature's columns): d/dt (K + U) = qd^T tau - y_P pi.",
     ),
+    QuantitySpec(
+        "constraint_jacobian", ("q",), _constraint_matrix, lambda d: _flat(sym.constraint_jacobian(d)),
+        "A(q) qd = dphi/dt, A = J^h_a - J^h_b on the constrained axes",
+        "Constraint Jacobian: one row per constrained world axis (rx, ry, rz, x, y, z) of each constraint "
+        "(jaxskid.PointContact, FrameContact, LoopClosure), one column per velocity coordinate; M qdd + h = "
+        "tau + A^T lambda, lambda the constraint wrenches (moment, force) in world axes.",
+        needs_constraints=True,
+    ),
+    QuantitySpec(
+        "constraint_drift", ("q", "qd"), _constraint_rows, sym.constraint_drift,
+        "Adot(q, qd) qd", "Drift term of the constraints: A qdd + Adot qd = d^2 phi/dt^2 (the frames' classical "
+        "accelerations at qdd = 0, without gravity).", needs_constraints=True,
+    ),
+    QuantitySpec(
+        "constraint_residual", ("q",), _constraint_rows, sym.constraint_residual,
+        "phi(q)", "Position residual of the constraints, zero where they hold: p_a - p_b along the translations, "
+        "the axis of the skew part of R_a R_b^T (sin(angle) axis) about the rotations.", needs_constraints=True,
+    ),
+    QuantitySpec(
+        "center_of_mass", ("q",), lambda r: (3,), sym.center_of_mass,
+        "c(q) = sum_i (m_i p_i + R_i h_i) / m", "Centre of mass of the moving bodies in the world frame.",
+    ),
+    QuantitySpec(
+        "center_of_mass_jacobian", ("q",), _centroidal(3), lambda d: _flat(sym.center_of_mass_jacobian(d)),
+        "dc/dt = J_c(q) qd", "Jacobian of the centre of mass (world axes), 3 x nv.",
+    ),
+    QuantitySpec(
+        "centroidal_momentum_matrix", ("q",), _centroidal(6), lambda d: _flat(sym.centroidal_momentum_matrix(d)),
+        "h_G = A_G(q) qd",
+        "Centroidal momentum matrix (Orin, Goswami & Lee 2013): the angular momentum about the centre of mass "
+        "and the linear momentum, in world axes, 6 x nv (angular rows first).",
+    ),
+    QuantitySpec(
+        "ee_pose", ("q",), lambda r: (len(r.end_effectors), 4, 4),
+        lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.end_effectors]),
+        "C_e(q) = C_body(q) T_e", "World pose of each end-effector: forward_kinematics of those frames alone.",
+        needs_end_effector=True,
+    ),
 )
 
 QUANTITIES: MappingProxyType[str, QuantitySpec] = MappingProxyType({spec.name: spec for spec in _CATALOGUE})
@@ -356,5 +411,9 @@ DEFAULT_QUANTITIES = (
     "inverse_dynamics",
     "forward_dynamics",
     "forward_kinematics",
+    "constraint_jacobian",
+    "constraint_drift",
+    "constraint_residual",
 )
-"""What :func:`jaxskid.lower` derives when no quantity is named."""
+"""What :func:`jaxskid.lower` derives when no quantity is named (the constraint quantities only for a robot with
+constraints)."""

@@ -34,6 +34,15 @@ _ARGUMENT_DOCS = {
     "wrench_d": "first time derivatives of the end-effector wrenches",
     "wrench_dd": "second time derivatives of the end-effector wrenches",
 }
+_BASE_DOCS = {
+    "q": "base position (x, y, z) and quaternion (qx, qy, qz, qw)",
+    "qd": "base twist (omega, v) in the base frame",
+    "qdd": "its time derivative",
+    "q3d": "its second time derivative",
+    "q4d": "its third time derivative",
+    "tau": "base wrench (moment, force) in the base frame",
+    "cotangent": "weights of the base wrench",
+}
 
 
 @dataclass(frozen=True)
@@ -123,14 +132,26 @@ def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, 
             bad = [q for q in names if QUANTITIES[q].needs_end_effector]
             if bad:
                 raise RequestError(f"{', '.join(bad)} need an end-effector, and robot {robot.name!r} has none")
+    if not robot.constraints:
+        if quantities is None or quantities == "all":
+            names = [q for q in names if not QUANTITIES[q].needs_constraints]
+        elif bad := [q for q in names if QUANTITIES[q].needs_constraints]:
+            raise RequestError(f"{', '.join(bad)} need constraints, and robot {robot.name!r} has none; give them with "
+                               "robot.with_constraints([...]) or a constraints block")
     order = list(QUANTITIES)
     return tuple(sorted(dict.fromkeys(names), key=order.index))
 
 
 def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
-    n, n_ee = robot.n_dof, len(robot.end_effectors)
-    shapes = {**{k: (n,) for k in (*STATE_ORDERS, "tau", "cotangent")}, **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
-    return {k: Argument(k, shape, inputs.by_name(k), _ARGUMENT_DOCS[k]) for k, shape in shapes.items()}
+    """The arguments' shapes: ``q`` ``(nq,)``, the velocity-space ones ``(nv,)`` (``n`` each for a fixed base; a
+    floating base's position and quaternion, or its twist or wrench, first), the wrenches ``(n_ee, 6)``."""
+    n_ee = len(robot.end_effectors)
+    shapes = {**{k: (robot.nq if k == "q" else robot.nv,) for k in (*STATE_ORDERS, "tau", "cotangent")},
+              **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
+    docs = dict(_ARGUMENT_DOCS)
+    if robot.floating_base:
+        docs.update({k: f"{_BASE_DOCS[k]}, then the {docs[k]}" for k in _BASE_DOCS})
+    return {k: Argument(k, shape, inputs.by_name(k), docs[k]) for k, shape in shapes.items()}
 
 
 def derive(
@@ -145,6 +166,9 @@ def derive(
     options = options or Options()
     names = resolve(robot, quantities)
     mimic.check(robot, names, options.route)
+    if robot.floating_base and options.route == "lagrange":
+        raise RequestError(f"Options(route='lagrange') not available: robot {robot.name!r} has a floating base; "
+                           "use the default route 'screw'")
     inputs = Inputs.of(robot)
     d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing))
     built: dict[str, list] = {}

@@ -17,7 +17,8 @@ bodies, then projected with the constant ``G`` of ``q_bodies = G q + b`` (:mod:`
 forward dynamics solves ``(G^T M G) qdd = tau - G^T bias`` by the symbolic ``L^T D L`` with the projected
 matrix's own sparsity, and the vector-Jacobian product of inverse dynamics differentiates ``G^T tau`` on
 the tape, whose mimic states carry the chain rule to ``q`` and ``qd``. A quantity not listed here
-(:data:`AXES`) is refused for a robot with mimic joints (:class:`~jaxskid.RequestError`).
+(:data:`AXES`) is refused for a robot with mimic joints (:class:`~jaxskid.RequestError`). A floating base's
+six velocity coordinates are coordinates of both spaces: ``G`` passes them through.
 """
 
 from __future__ import annotations
@@ -36,10 +37,11 @@ _ROWS, _COLUMNS, _BOTH, _NONE = "rows", "columns", "both", "none"
 
 
 def _groups(d: Derivation) -> list[list[tuple[int, sp.Expr]]]:
-    """Per coordinate k, the bodies ``i`` it moves and their multipliers: the non-zeros of column k of G."""
-    groups: list[list] = [[] for _ in range(d.robot.n_dof)]
+    """Per coordinate k, the velocity-space entries it moves and their multipliers: the non-zeros of column
+    k of G (a floating base's six first, each its own)."""
+    groups: list[list] = [[(c, sp.Integer(1))] for c in range(d.offset)] + [[] for _ in range(d.robot.n_dof)]
     for i, (k, a, _) in enumerate(d.robot.coupling()):
-        groups[k].append((i, a))
+        groups[d.offset + k].append((d.position(i), a))
     return groups
 
 
@@ -51,7 +53,7 @@ def _combine(d: Derivation, terms) -> sp.Expr:
 def project(d: Derivation, outs: Sequence, kind: str) -> list:
     """Flat, row-major ``outs`` of a quantity in the bodies' joint space, projected onto the coordinates:
     the leading axis by ``G^T`` (``"rows"``), the last by ``G`` (``"columns"``), both (``"both"``, square)."""
-    groups, n = _groups(d), d.n
+    groups, n = _groups(d), d.nv
     outs = list(outs)
     if kind in (_ROWS, _BOTH):
         r = len(outs) // n
@@ -63,7 +65,7 @@ def project(d: Derivation, outs: Sequence, kind: str) -> list:
 
 
 def _matrix(d: Derivation, m: sp.Matrix) -> sp.Matrix:
-    n = d.robot.n_dof
+    n = d.robot.nv
     return sp.Matrix(n, n, project(d, list(m), _BOTH))
 
 
@@ -71,7 +73,7 @@ def forward_dynamics(d: Derivation) -> list:
     """``qdd = (G^T M G)^-1 (tau - G^T bias)``, factored symbolically (dense order, structural zeros skipped)."""
     m = _matrix(d, sym.mass_matrix(d))
     bias = project(d, bias_forces(d), _ROWS)
-    return solve(d.tape, m, d.inputs.tau, bias, list(range(-1, d.robot.n_dof - 1)))
+    return solve(d.tape, m, d.inputs.tau, bias, list(range(-1, d.robot.nv - 1)))
 
 
 def inverse_dynamics_vjp(d: Derivation) -> list:
@@ -100,6 +102,13 @@ AXES: dict[str, str | Callable[[Derivation], list]] = {
                           "kinetic_energy_regressor", "potential_energy_regressor", "friction_power_regressor")},
     "forward_dynamics": forward_dynamics,
     "inverse_dynamics_vjp": inverse_dynamics_vjp,
+    "constraint_jacobian": _COLUMNS,
+    "constraint_drift": _NONE,
+    "constraint_residual": _NONE,
+    "center_of_mass": _NONE,
+    "ee_pose": _NONE,
+    "center_of_mass_jacobian": _COLUMNS,
+    "centroidal_momentum_matrix": _COLUMNS,
 }
 """How each quantity reaches the coordinates (module docstring): a projection, or its own builder."""
 

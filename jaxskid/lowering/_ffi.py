@@ -46,7 +46,8 @@ _PRELUDE = r"""
 #include "xla/ffi/api/c_api.h"
 #include "@STEM@.@INCLUDE@"  /* the scalar C where a kernel calls it (one translation unit), else its macros */
 
-#define N @STEM_UPPER@_N_DOF
+#define N @STEM_UPPER@_NV  /* the velocity coordinates: n, or 6 + n with a floating base */
+#define NQ @STEM_UPPER@_NQ /* the configuration: n, or 7 + n */
 #define NP @STEM_UPPER@_N_PARAMS
 #define NP1 (NP > 0 ? NP : 1)
 
@@ -140,7 +141,7 @@ XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 {
     if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
         return NULL;
-    static const int64_t size[5] = {N, N, N, N, NP};
+    static const int64_t size[5] = {NQ, N, N, N, NP};
     const XLA_FFI_Buffer *in[5];
     int64_t stride[5];
     for (int i = 0; i < 5; i++) {
@@ -149,7 +150,7 @@ XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
     }
     XLA_FFI_Buffer *res = (XLA_FFI_Buffer *)call->rets.rets[0];
     const int64_t batch = numel(res) / NO;
-    T q[N], qd[N], a[N], g[N], p[NP1], out[NO];
+    T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
     T *w[5] = {q, qd, a, g, p};
     for (int64_t b = 0; b < batch; b += W) {
         for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */

@@ -3,7 +3,8 @@
 :class:`Robot` (``_robot``) is built from :class:`Joint` s and :class:`Frame` s (``_joint``), whose drives are
 :class:`Drive` s (``_drive``) and whose couplings are :class:`Mimic` s (``_mimic``), and validated in
 one place (``_validate``); fixed joints are locked and welded by ``_fixed``; ``_lie`` holds the SymPy
-spatial matrices and ``_parameters`` the rule that maps a user's parameters onto a model's.
+spatial matrices and ``_parameters`` the rule that maps a user's parameters onto a model's. Its constraints
+(contacts, loop closures) are ``_constraint``'s, whose satisfiability ``_closure`` checks numerically.
 
 The names below are imported on first use: ``_parameters`` is sympy-free and serves the runtime, which
 must not import SymPy by importing this package.
@@ -14,6 +15,9 @@ from importlib import import_module
 _EXPORTS = {
     "Drive": "_drive",
     "Frame": "_joint",
+    "FrameContact": "_constraint",
+    "LoopClosure": "_constraint",
+    "PointContact": "_constraint",
     "Joint": "_joint",
     "JointLimits": "_joint",
     "JOINT_TYPES": "_robot",

@@ -25,13 +25,15 @@ def lock_joint(joint, value):
     return replace(joint, type="fixed", origin=origin, screw=(0,) * 6, drive=None, mimic=None)
 
 
-def merge_fixed(joints: Sequence, frames: Sequence) -> tuple[list, list]:
-    """Weld every fixed joint's body to its parent; returns the moving joints and the frames.
+def merge_fixed(joints: Sequence, frames: Sequence, base_inertia=None) -> tuple[list, list, sp.ImmutableMatrix | None]:
+    """Weld every fixed joint's body to its parent; returns the moving joints, the frames and the base inertia.
 
     A fixed body's mass-inertia is moved into its parent's frame and added to the parent's
     (:func:`jaxskid.model._lie.transform_inertia`); its children and frames are re-attached to the parent,
     and the body itself stays reachable as a frame named after its link, appended after the given frames.
     Joints are in the order of ``q`` (parents first), so a fixed chain collapses from the root outwards.
+    A body welded to the root (parent ``-1``) adds its inertia to ``base_inertia``, the floating base's
+    (``None``: a fixed base, which drops it).
     """
     joints, frames = list(joints), list(frames)
     alive = [True] * len(joints)
@@ -40,9 +42,13 @@ def merge_fixed(joints: Sequence, frames: Sequence) -> tuple[list, list]:
             continue
         alive[i] = False
         t, p = j.origin, j.parent  # pose of body i in its parent's frame
-        if p >= 0 and any(e != 0 for e in j.inertia):
-            merged = joints[p].inertia + lie.transform_inertia(j.inertia, t)
-            joints[p] = replace(joints[p], inertia=sp.ImmutableMatrix(merged.applyfunc(_tidy)))
+        if any(e != 0 for e in j.inertia) and (p >= 0 or base_inertia is not None):
+            merged = (joints[p].inertia if p >= 0 else base_inertia) + lie.transform_inertia(j.inertia, t)
+            merged = sp.ImmutableMatrix(merged.applyfunc(_tidy))
+            if p >= 0:
+                joints[p] = replace(joints[p], inertia=merged)
+            else:
+                base_inertia = merged
         for k in range(i + 1, len(joints)):
             if joints[k].parent == i:
                 joints[k] = replace(joints[k], parent=p, origin=_moved(t, joints[k].origin))
@@ -53,7 +59,7 @@ def merge_fixed(joints: Sequence, frames: Sequence) -> tuple[list, list]:
         if alive[i]:
             new_index[i] = len(new_index) - 1
     kept = [replace(j, parent=new_index[j.parent]) for i, j in enumerate(joints) if alive[i]]
-    return kept, [replace(f, body=new_index[f.body]) for f in frames]
+    return kept, [replace(f, body=new_index[f.body]) for f in frames], base_inertia
 
 
 def _moved(t, pose) -> sp.ImmutableMatrix:

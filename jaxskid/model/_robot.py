@@ -1,6 +1,7 @@
-"""The immutable robot model: a fixed-base open chain or tree of rigid bodies.
+"""The immutable robot model: an open chain or tree of rigid bodies on a fixed or a floating base.
 
-Body ``i`` is moved by joint ``i``; its parent is body ``parents[i]`` (``-1`` is the world). Every
+Body ``i`` is moved by joint ``i``; its parent is body ``parents[i]`` (``-1`` is the world, or the floating
+base with :attr:`Robot.floating_base`, whose inertia is :attr:`Robot.base_inertia`). Every
 quantity is stored in the **body-fixed representation** (Müller 2018, sec. 2.3):
 
 * ``Joint.origin`` (``B_i``): the 4x4 pose of body ``i``'s frame in its parent's frame at ``q = 0``;
@@ -31,11 +32,12 @@ import sympy as sp
 
 from . import _lie as lie
 from .._errors import ModelError
+from ._constraint import check_constraints, constraint_symbols
 from ._drive import Drive, drive_parameter_names
 from ._fixed import lock_joint, merge_fixed
 from ._joint import Frame, Joint, JointLimits
 from ._mimic import Mimic, follow_locks, resolve
-from ._validate import check_defaults, check_parents, symbol, to_expr, validate
+from ._validate import check_defaults, check_mass_inertia, check_parents, describe, symbol, to_expr, validate
 
 __all__ = ["JOINT_TYPES", "Drive", "Frame", "Joint", "JointLimits", "Mimic", "Robot", "spatial_to_body", "symbol", "to_expr"]
 
@@ -59,7 +61,15 @@ class Robot:
         frames: named frames besides the bodies: merged fixed links and end-effectors.
         end_effectors: names of the frames that are end-effectors.
         defaults: parameter name -> default value, as ``(name, value)`` pairs.
-        base: name of the world (root) link.
+        base: name of the world (root) link; with ``floating_base``, the name of the floating base body.
+        floating_base: whether the root is a free-flyer: the base body moves with 6 degrees of freedom,
+            ``q = (x, y, z, qx, qy, qz, qw, q_1..q_n)`` (base position in the world, unit quaternion of its
+            orientation, as Pinocchio's ``JointModelFreeFlyer``) and velocities ``(omega, v, qd_1..qd_n)`` (the
+            base twist in the base frame, angular first). The root joints' parent (body ``-1``) is then the base.
+            A quaternion that is not unit-norm gives the rotation of the normalised one (a zero one gives nan).
+        base_inertia: the 6x6 mass-inertia of the floating base body in its own frame (``None`` for a fixed
+            base; zero unless given); fixed links welded to the root are added to it.
+        constraints: contacts and loop closures (:mod:`jaxskid.model._constraint`), their anchors computed.
     """
 
     name: str
@@ -69,6 +79,9 @@ class Robot:
     end_effectors: tuple[str, ...] = ()
     defaults: tuple[tuple[str, float], ...] = ()
     base: str = "world"
+    floating_base: bool = False
+    base_inertia: sp.ImmutableMatrix | None = None
+    constraints: tuple = ()
     _parameters: tuple[str, ...] = field(default=(), compare=False, repr=False)
 
     # ------------------------------------------------------------------ construction
@@ -82,13 +95,20 @@ class Robot:
         end_effectors: Sequence[str] = (),
         defaults: Mapping[str, float] | None = None,
         base: str = "world",
+        floating_base: bool = False,
+        base_inertia=None,
+        constraints: Sequence = (),
     ) -> "Robot":
-        """Build and validate a robot. Joints of type ``"fixed"`` are merged into their parent body.
+        """Build and validate a robot. Joints of type ``"fixed"`` are merged into their parent body; with
+        ``floating_base``, those welded to the root are merged into the base body, whose own 6x6 mass-inertia is
+        ``base_inertia`` (zero if not given).
 
         Raises:
             ModelError: the first invariant that does not hold, at the caller's key path
-                (``joints[2].inertia``, ``frames[0].offset[3]``, ``defaults.m1``, ``gravity[1]``).
+                (``joints[2].inertia``, ``frames[0].offset[3]``, ``defaults.m1``, ``gravity[1]``,
+                ``floating_base``, ``base_inertia``, ``constraints[0].frame_b``).
         """
+        floating_base, base_inertia = _normalize_base(floating_base, base_inertia)
         joints = [_normalize_joint(j, i) for i, j in enumerate(joints)]
         frames = [_normalize_frame(f, k) for k, f in enumerate(frames)]
         check_parents([j.parent for j in joints])
@@ -98,17 +118,25 @@ class Robot:
         gravity = tuple(to_expr(g, where=f"gravity[{k}]") for k, g in enumerate(gravity))
         clean = check_defaults(defaults or {})
         validate(joints, frames, gravity, end_effectors, clean, base)
+        if base_inertia is not None:
+            check_mass_inertia(base_inertia, {symbol(k): v for k, v in clean.items()}, "base_inertia")
         joints = _resolve_mimics(joints)
-        joints, frames = merge_fixed(joints, frames)
+        joints, frames, base_inertia = merge_fixed(joints, frames, base_inertia)
         robot = cls(name=name, joints=tuple(joints), gravity=gravity, frames=tuple(frames),
-                    end_effectors=tuple(end_effectors), defaults=tuple(clean.items()), base=base)
+                    end_effectors=tuple(end_effectors), defaults=tuple(clean.items()), base=base,
+                    floating_base=floating_base, base_inertia=base_inertia)
+        if constraints:  # checked on the merged tree, whose frames they name
+            values = {symbol(k): v for k, v in clean.items()}
+            object.__setattr__(robot, "constraints", check_constraints(robot, constraints, values))
         object.__setattr__(robot, "_parameters", robot._find_parameters())
         return robot
 
     def _recreate(self, **changes) -> "Robot":
         """:meth:`create` with this robot's arguments, some of them replaced."""
         args = dict(name=self.name, joints=self.joints, gravity=self.gravity, frames=self.frames,
-                    end_effectors=self.end_effectors, defaults=dict(self.defaults), base=self.base)
+                    end_effectors=self.end_effectors, defaults=dict(self.defaults), base=self.base,
+                    floating_base=self.floating_base, base_inertia=self.base_inertia,
+                    constraints=self.constraints)
         return Robot.create(**{**args, **changes})
 
     # ------------------------------------------------------------------ views
@@ -116,6 +144,17 @@ class Robot:
     def n_dof(self) -> int:
         """The number of coordinates: the independent joints (every joint without mimic joints)."""
         return len(self.coordinates)
+
+    @property
+    def nq(self) -> int:
+        """The size of ``q``: ``7 + n_dof`` with a floating base (position and quaternion first), else ``n_dof``."""
+        return self.n_dof + 7 * self.floating_base
+
+    @property
+    def nv(self) -> int:
+        """The size of ``qd``, ``qdd`` and ``tau``: ``6 + n_dof`` with a floating base (its twist or wrench
+        first), else ``n_dof``."""
+        return self.n_dof + 6 * self.floating_base
 
     @property
     def n_bodies(self) -> int:
@@ -223,6 +262,11 @@ class Robot:
             h.update(repr((f.name, f.body)).encode())
             h.update(sp.srepr(f.offset).encode())
         h.update(repr((self.end_effectors, self.base, self.name)).encode())
+        if self.floating_base:  # a fixed-base robot hashes as it did before floating bases existed
+            h.update(sp.srepr(("floating_base", self.base_inertia)).encode())
+        for c in self.constraints:  # a robot without constraints hashes as it did before they existed
+            h.update(repr((type(c).__name__, c.frames, c.axes)).encode())
+            h.update(sp.srepr(c.anchor).encode())
         return h.hexdigest()
 
     # ------------------------------------------------------------------ derived models
@@ -256,6 +300,11 @@ class Robot:
                 j = replace(j, drive=Drive.symbolic(j.name))
             joints.append(j)
         return self._recreate(joints=joints, defaults={**values, **(defaults or {})})
+
+    def with_constraints(self, constraints: Sequence) -> "Robot":
+        """A new robot with ``constraints`` (:class:`~jaxskid.PointContact`, :class:`~jaxskid.FrameContact`,
+        :class:`~jaxskid.LoopClosure`) in place of its own, checked as :meth:`create` checks them."""
+        return self._recreate(constraints=tuple(constraints))
 
     def renamed(self, name: str) -> "Robot":
         """The same robot under another name (generated code and files are named after it)."""
@@ -308,10 +357,14 @@ class Robot:
         joints = [replace(j, origin=matrix(j.origin), screw=tuple(fn(sp.sympify(x)) for x in j.screw),
                           inertia=matrix(j.inertia), drive=None if j.drive is None else j.drive.mapped(fn)) for j in self.joints]
         frames = [replace(f, offset=matrix(f.offset)) for f in self.frames]
+        base_inertia = None if self.base_inertia is None else matrix(self.base_inertia)
         return self._recreate(joints=joints, frames=frames, gravity=tuple(fn(g) for g in self.gravity),
-                              defaults=dict(self.defaults) if defaults is None else dict(defaults))
+                              defaults=dict(self.defaults) if defaults is None else dict(defaults),
+                              base_inertia=base_inertia, constraints=tuple(c.mapped(fn) for c in self.constraints))
 
     def expressions(self) -> Iterable[sp.Expr]:
+        if self.base_inertia is not None:
+            yield from self.base_inertia
         for j in self.joints:
             yield from j.origin
             yield from j.screw
@@ -320,6 +373,7 @@ class Robot:
         yield from self.gravity
         for f in self.frames:
             yield from f.offset
+        yield from constraint_symbols(self.constraints)
 
     def _find_parameters(self) -> tuple[str, ...]:
         seen: dict[str, None] = {}
@@ -355,6 +409,21 @@ def _normalize_joint(j: Joint, i: int) -> Joint:
             raise ModelError(f"expected a JointLimits or None, got {type(limits).__name__}", where=f"{where}.limits")
         limits = limits.checked(f"{where}.limits")
     return Joint(str(j.name), j.type, j.parent, origin, screw, inertia, str(j.link), drive, mimic, limits)
+
+
+def _normalize_base(floating_base, base_inertia) -> tuple[bool, sp.ImmutableMatrix | None]:
+    """``(floating_base, base_inertia)`` checked: a bool, and a 6x6 matrix (zero if not given) for a floating
+    base, ``None`` for a fixed one."""
+    if not isinstance(floating_base, (bool, np.bool_)):
+        raise ModelError(f"expected true or false, got {describe(floating_base)}", where="floating_base")
+    if not floating_base:
+        if base_inertia is not None:
+            raise ModelError("a fixed base has no inertia of its own; give floating_base=True or leave it out",
+                             where="base_inertia")
+        return False, None
+    if base_inertia is None:
+        return True, sp.ImmutableMatrix(sp.zeros(6))
+    return True, _matrix(base_inertia, (6, 6), "base_inertia")
 
 
 def _resolve_mimics(joints: list[Joint]) -> list[Joint]:

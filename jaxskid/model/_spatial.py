@@ -105,6 +105,19 @@ def compose(r1: Sequence[Sequence], p1: Sequence, r2: Sequence[Sequence], p2: Se
     return [name(row) for row in matmul(r1, r2)], name(add(matvec(r1, p2), p1))
 
 
+def quaternion_rotation(quat: Sequence, scale2, name: Name = unnamed) -> Rows:
+    """The rotation of the quaternion ``quat = (x, y, z, w)`` stored as Pinocchio stores it, with ``scale2 =
+    2 / (x^2 + y^2 + z^2 + w^2)``: ``R = 1 + s (w u~ + u~^2)`` for ``u = (x, y, z)`` (the rotation of the normalised
+    quaternion; ``s = 2`` for a unit one, Eigen's ``toRotationMatrix``). The hook names each row."""
+    x, y, z, w = quat
+    s = scale2
+    return [
+        name([1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)]),
+        name([s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)]),
+        name([s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)]),
+    ]
+
+
 def screw_exp(w: Sequence, v: Sequence, q, sin_cos: tuple | None, name: Name = unnamed) -> tuple[Rows, Vec]:
     """``(R, p)`` of ``exp(X q)`` for the unit screw ``X = (w, v)`` (Lynch & Park, "Modern Robotics",
     2017, eq. 3.51 and 3.88)::

@@ -7,6 +7,7 @@ order, :data:`jaxskid.model._lie.STANDARD_PARAMETER_NAMES`).
 They are named ``{link}_{p}``, the convention of the robot's own parameters (``upper_arm_link_m``).
 A robot with drives (:mod:`jaxskid.model._drive`) has 4 more per driven joint, in body order:
 ``(Ia, fv, fc, fo)``, named ``{joint}_{p}`` (:func:`~jaxskid.model._drive.drive_parameter_names`).
+A floating base is a body too: its 10 parameters, named after the root link (``Robot.base``), come first.
 A robot's own parameters are read through :class:`~jaxskid.model._parameters.ParameterLayout`: a partial
 dict takes the defaults for the rest, and an unknown name is an error that names the closest valid ones.
 """
@@ -28,21 +29,23 @@ N_STANDARD = len(lie.STANDARD_PARAMETER_NAMES)  # 10 parameters per body
 
 
 def n_standard(robot: Robot) -> int:
-    """The number of standard parameters: ``10 n_bodies + 4 n_driven``."""
-    return N_STANDARD * robot.n_bodies + len(DRIVE_PARAMETER_NAMES) * len(robot.driven)
+    """The number of standard parameters: ``10 n_bodies + 4 n_driven`` (10 more for a floating base)."""
+    return N_STANDARD * (robot.n_bodies + robot.floating_base) + len(DRIVE_PARAMETER_NAMES) * len(robot.driven)
 
 
 def standard_parameter_names(robot: Robot) -> tuple[str, ...]:
     """``{link}_{m, mcx, ..., Izz}`` for every body, then ``{joint}_{Ia, fv, fc, fo}`` for every driven
     joint, in the order of :func:`standard_params`."""
-    bodies = tuple(f"{link}_{p}" for link in robot.link_names for p in lie.STANDARD_PARAMETER_NAMES)
+    links = ((robot.base,) if robot.floating_base else ()) + robot.link_names
+    bodies = tuple(f"{link}_{p}" for link in links for p in lie.STANDARD_PARAMETER_NAMES)
     return bodies + tuple(n for i in robot.driven for n in drive_parameter_names(robot.joints[i].name))
 
 
 def standard_parameter_expressions(robot: Robot) -> list[sp.Expr]:
     """The standard parameters (10 per body, 4 per driven joint) as expressions of the robot's own
     parameter symbols."""
-    bodies = [e for j in robot.joints for e in lie.standard_parameters(j.inertia)]
+    inertias = ([robot.base_inertia] if robot.floating_base else []) + [j.inertia for j in robot.joints]
+    bodies = [e for m in inertias for e in lie.standard_parameters(m)]
     return bodies + [sp.sympify(e) for i in robot.driven for e in robot.joints[i].drive.values()]
 
 
@@ -77,7 +80,8 @@ def standard_params(robot: Robot, params: Mapping[str, float] | Sequence[float] 
             vector in the order of ``robot.parameters``.
 
     Returns:
-        a float64 array of shape ``(10 * robot.n_bodies + 4 * len(robot.driven),)``.
+        a float64 array of shape ``(10 * robot.n_bodies + 4 * len(robot.driven),)``, with 10 more first for a
+        floating base (its root link's).
     """
     sub = {symbol(k): sp.Float(v) for k, v in _values(robot, params, "standard_params: params").items()}
     return np.array([float(sp.sympify(e).xreplace(sub)) for e in standard_parameter_expressions(robot)])

@@ -98,6 +98,13 @@ class QuantitySet:
         base (Pinocchio's ``difference``, with the twist as (omega, v)), ``q1 - q0`` for joints."""
         return _ff.difference(jnp.asarray(q0), jnp.asarray(q1), self.floating_base)
 
+    def argument_shape(self, arg: str) -> tuple[int, ...]:
+        """The shape of one state of the argument ``arg``: ``(n_ee, 6)`` for the wrenches, ``(nq,)`` for ``q``,
+        ``(nv,)`` for the velocity-space ones (``qd``, ``qdd``, ..., ``tau``, ``cotangent``)."""
+        if arg.startswith("wrench"):
+            return (len(self.end_effectors), 6)
+        return (self.nq,) if arg == "q" else (self.nv,)
+
     def default_params(self) -> dict[str, float]:
         """Parameter name -> default value, for the parameters that have one."""
         return dict(self.defaults)

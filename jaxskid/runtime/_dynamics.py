@@ -22,6 +22,7 @@ from ..model._parameters import ParameterLayout
 from ._base import QuantitySet
 from ._ffi import library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
+from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._forward import accelerations, forward_dynamics
 from ._jit import compiler_options, jit, outermost  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
@@ -183,7 +184,7 @@ class Dynamics(QuantitySet):
         native = self.native_target(name)
         if native is not None:  # the C kernel on CPU: one per batch, not a program per entry (jaxskid.runtime._ffi)
             raw, plain = native_quantity(native, shape, raw), native_quantity(native, shape, plain)
-        cores = {a: ((len(self.end_effectors), 6) if a.startswith("wrench") else (self.n_dof,)) for a in args}
+        cores = {a: self.argument_shape(a) for a in args}
         n_params = (len(self.parameters),)
 
         def call(*state, params=None, pair=False):
@@ -261,6 +262,18 @@ class Dynamics(QuantitySet):
         Cholesky-type solve; see :func:`jaxskid.forward_dynamics`.
         """
         return forward_dynamics(self, q, qd, tau, params, wrench=wrench)
+
+    def constrained_forward_dynamics(self, q, qd, tau, params=None, *, stabilization=None, regularization=0.0):
+        """``(qdd, lambda)`` with ``M qdd + h = tau + A^T lambda`` and ``A qdd = -Adot qd`` (with
+        :class:`~jaxskid.Baumgarte` ``stabilization``: ``- 2 alpha A qd - beta^2 phi``), for a robot with
+        constraints; see :func:`jaxskid.constrained_forward_dynamics`."""
+        return constrained_forward_dynamics(self, q, qd, tau, params, stabilization=stabilization,
+                                            regularization=regularization)
+
+    def constrained_inverse_dynamics(self, q, qd, qdd, actuated, params=None):
+        """``(tau_a, lambda)`` with ``B tau_a + A^T lambda = tau(q, qd, qdd)`` for the ``actuated`` joints of a
+        closed chain; see :func:`jaxskid.constrained_inverse_dynamics`."""
+        return constrained_inverse_dynamics(self, q, qd, qdd, actuated, params)
 
     def __repr__(self) -> str:
         return f"Dynamics({self.robot_name!r}, n_dof={self.n_dof}, quantities={list(self.quantities)})"

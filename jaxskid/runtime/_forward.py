@@ -95,8 +95,8 @@ def _forward_dynamics(dyn, q, qd, tau, params, wrench):
     if wrench is not None:
         wrench = jnp.asarray(wrench, dtype)
         extras.append(("wrench", wrench.shape, (len(dyn.end_effectors), 6)))
-    n = (dyn.n_dof,)
-    batch = batch_shape("forward_dynamics", [("q", q.shape, n), ("qd", qd.shape, n), ("tau", tau.shape, n)], extras)
+    nq, nv = dyn.argument_shape("q"), dyn.argument_shape("qd")
+    batch = batch_shape("forward_dynamics", [("q", q.shape, nq), ("qd", qd.shape, nv), ("tau", tau.shape, nv)], extras)
     f = accelerations(dyn, batched=bool(batch))
     if not batch:
         return f(q, qd, tau, p, wrench)
@@ -110,7 +110,8 @@ def forward_dynamics(dyn, q, qd, tau, params=None, *, wrench=None) -> jax.Array:
         dyn: a :class:`~jaxskid.Dynamics` lowered with ``forward_dynamics`` (the closed form, fastest), or
             with ``mass_matrix`` and ``inverse_dynamics`` (or ``coriolis_torques`` and ``gravity_torques``);
             with ``external_torques`` too if ``wrench`` is given.
-        q, qd, tau: shape ``(n,)``, or ``(..., n)`` for a batch (the same for the three).
+        q, qd, tau: shape ``(n,)``, or ``(..., n)`` for a batch (the same for the three); with a floating base,
+            q ``(..., 7 + n)`` and qd, tau ``(..., 6 + n)`` (:attr:`jaxskid.Robot.floating_base`).
         params: ``None`` (defaults), a dict name -> value (missing names take their defaults), or a vector
             ``(n_params,)``; a batch of vectors ``(..., n_params)`` or a dict of batched values broadcasts
             against the batch of the states.

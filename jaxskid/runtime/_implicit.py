@@ -74,7 +74,7 @@ def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
 
 
 def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
-    n = dyn.n_dof
+    nq, n = dyn.argument_shape("q")[0], dyn.argument_shape("qd")[0]
 
     def kernel(q, qd, a, g, p):
         # computed once each: XLA on CPU would fuse them into each of their users (materialize)
@@ -92,9 +92,9 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
     def bwd(res, g):
         q, qd, a, p = res
         target = dyn.native_target()  # on CPU, one native kernel (jaxskid.runtime._ffi); looked up when traced
-        step = kernel if target is None else native_backward(target, n, 2 * n + len(dyn.parameters), kernel)
+        step = kernel if target is None else native_backward(target, n, nq + n + len(dyn.parameters), kernel)
         lam, w = step(q, qd, a, g, p)  # w = -lambda^T d ID/d(q, qd, p)
-        return w[:n], w[n:2 * n], lam, w[2 * n:]
+        return w[:nq], w[nq:nq + n], lam, w[nq + n:]
 
     fd.defvjp(fwd, bwd)
     return fd

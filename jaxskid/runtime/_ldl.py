@@ -38,7 +38,13 @@ def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
     with the computation of ``m`` and ``b``; vmap it for a batch. A matrix that is not positive definite
     (a pivot <= 0, e.g. from non-physical inertial parameters) gives nan, as ``jnp.linalg.cholesky`` does.
     """
-    n = b.shape[-1]
+    return ldl_substitute(ldl_factor(m), b)
+
+
+def ldl_factor(m: jax.Array) -> tuple[list, list]:
+    """The factors of ``m = L D L^T`` (n, n) as scalars: ``(L, 1 / D)``, ``L[i][j]`` for ``j < i``; solve with
+    them by :func:`ldl_substitute`, once per right-hand side (:func:`ldl_solve`)."""
+    n = m.shape[-1]
     lo = [[None] * n for _ in range(n)]
     d, dinv = [None] * n, [None] * n
     for j in range(n):
@@ -51,6 +57,13 @@ def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
             for k in range(j):
                 s = s - lo[i][k] * lo[j][k] * d[k]
             lo[i][j] = s * dinv[j]
+    return lo, dinv
+
+
+def ldl_substitute(factor: tuple[list, list], b: jax.Array) -> jax.Array:
+    """``x`` with ``L D L^T x = b``, from the factors of :func:`ldl_factor`: forward then back substitution."""
+    lo, dinv = factor
+    n = b.shape[-1]
     y = [None] * n
     for i in range(n):  # L y = b
         s = b[i]

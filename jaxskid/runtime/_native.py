@@ -169,7 +169,7 @@ class NativeDynamics(QuantitySet):
         return ns[name]
 
     def _arg_shape(self, arg: str) -> tuple[int, ...]:
-        return (len(self.end_effectors), 6) if arg.startswith("wrench") else (self.n_dof,)
+        return self.argument_shape(arg)
 
     def _frames(self, fn):
         frames = self.frame_names

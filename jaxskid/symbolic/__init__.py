@@ -9,6 +9,7 @@ derived together share their work. Each algorithm is a function of the derivatio
 * ``_rnea``: recursive Newton-Euler (tau, C qd, Q_grav, Q_ext);
 * ``_crba``: composite-rigid-body algorithm (M);
 * ``_jacobians``: body, hybrid and system Jacobians and their time derivatives;
+* ``_constraints``: the constraints' Jacobian, drift and residual (contacts, loop closures);
 * ``_coriolis``: the Christoffel-consistent Coriolis matrix;
 * ``_time_kinematics`` and ``_time_dynamics``: closed-form time derivatives (Müller & Kumar 2021);
 * ``_regressor``: the inertial-parameter regressor;
@@ -17,14 +18,18 @@ derived together share their work. Each algorithm is a function of the derivatio
 * ``_adjoint``: differentiation of the tape, reverse mode (the vector-Jacobian product of inverse dynamics)
   and forward mode;
 * ``_energy``: kinetic and potential energy;
+* ``_centroidal``: the centre of mass, its Jacobian and the centroidal momentum matrix;
 * ``_energy_regressor``: the energies, the momentum and the friction power as rows in the standard parameters;
 * ``_lagrange``: the Euler-Lagrange route to M, C qd, Q_grav and tau, from the link energies.
 
-The spatial algebra they share is :mod:`jaxskid.model._spatial`.
+The spatial algebra they share is :mod:`jaxskid.model._spatial`. A floating base is body ``-1`` of every
+recursion, a joint with screw matrix ``I_6`` (:mod:`._derivation`, :mod:`._kinematics`).
 """
 
 from . import _lagrange as lagrange
 from ._adjoint import inverse_dynamics_vjp, jvp, vjp
+from ._centroidal import center_of_mass, center_of_mass_jacobian, centroidal_momentum_matrix
+from ._constraints import constraint_drift, constraint_jacobian, constraint_residual
 from ._coriolis import coriolis_matrix
 from ._crba import mass_matrix
 from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
@@ -63,6 +68,12 @@ __all__ = [
     "body_hybrid_twist",
     "body_jacobian",
     "body_jacobian_dot",
+    "center_of_mass",
+    "center_of_mass_jacobian",
+    "centroidal_momentum_matrix",
+    "constraint_drift",
+    "constraint_jacobian",
+    "constraint_residual",
     "coriolis_matrix",
     "coriolis_matrix_derivative",
     "coriolis_torques",

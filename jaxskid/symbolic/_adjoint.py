@@ -113,6 +113,7 @@ def partials(expr: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
 
 def inverse_dynamics_vjp(d: Derivation) -> list:
     """``(w^T dtau/dq, w^T dtau/dqd, w^T dtau/dp)`` of inverse dynamics at fixed ``qdd``, with ``w`` the
-    input ``cotangent``: ``2 n + n_params`` entries."""
+    input ``cotangent``: ``nq + nv + n_params`` entries (a floating base's derivatives with respect to its
+    position, quaternion and twist first in the q and qd parts)."""
     tau = inverse_dynamics(d)
-    return vjp(d, tau, d.inputs.cotangent, (*d.q, *d.qd, *d.inputs.params))
+    return vjp(d, tau, d.inputs.cotangent, (*d.inputs.coordinate(0), *d.inputs.coordinate(1), *d.inputs.params))

@@ -17,7 +17,7 @@ import sympy as sp
 from ..model import _spatial as sa
 from ._derivation import Derivation
 from ._jacobians import jacobian_columns, jacobian_dot_columns
-from ._kinematics import Vec, inertia, twist, zero6
+from ._kinematics import Vec, inertia, twist
 from ._rnea import backward
 
 
@@ -40,10 +40,10 @@ def coriolis_wrench(d: Derivation, i: int, k: int) -> Vec:
 
 
 def coriolis_matrix(d: Derivation) -> sp.Matrix:
-    """C(q, qd), n x n."""
-    c = sp.zeros(d.n)
-    for k in range(d.n):
-        wrenches = [coriolis_wrench(d, i, k) if k in jacobian_columns(d, i) else zero6() for i in range(d.n)]
+    """C(q, qd), nv x nv (a floating base's column keys :data:`~._derivation.BASE_COLUMNS` included)."""
+    c = sp.zeros(d.nv)
+    for k in d.columns:
+        wrenches = {i: coriolis_wrench(d, i, k) for i in d.bodies if k in jacobian_columns(d, i)}
         for i, e in enumerate(backward(d, wrenches)):
-            c[i, k] = e
+            c[i, d.position(k)] = e
     return c

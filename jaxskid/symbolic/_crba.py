@@ -5,7 +5,9 @@ The composite inertia of each subtree is kept in the 10-parameter form ``(m, h, 
 ``h = m c`` and rotational inertia about the frame origin), which moves to the parent with fewer
 operations than the 6x6 product ``T^T Ic T``; ``M_ij = X_j^T (T^T ... Ic_i X_i)`` for j on the path from
 i to the root, and only the lower triangle is computed. The drives' armature adds to the diagonal
-(:mod:`._drives`).
+(:mod:`._drives`). A floating base (body ``-1``, ``X = I_6``) gets the base block ``M_bb = Ic_b``, the
+composite inertia of the whole tree in the base frame, and the columns ``M_bi = T^T ... Ic_i X_i`` carried
+up to the base frame (Featherstone 2008, sec. 9.2).
 """
 
 from __future__ import annotations
@@ -52,15 +54,23 @@ def apply_composite(d: Derivation, i: int, x: Sequence) -> Vec:
 
 
 def mass_matrix(d: Derivation) -> sp.Matrix:
-    """M(q) + diag(Ia), symmetric, n x n (``Ia``: the drives' armature, 0 without drives)."""
-    m = sp.zeros(d.n)
+    """M(q) + diag(Ia), symmetric, nv x nv (``Ia``: the drives' armature, 0 without drives)."""
+    m = sp.zeros(d.nv)
     for i, ia in enumerate(armature(d)):
         x = screw(d, i)
         f = d.tape.vec(apply_composite(d, i, x))
-        m[i, i] = d.tape(sa.dot(x, f) + ia)
+        a = d.position(i)
+        m[a, a] = d.tape(sa.dot(x, f) + ia)
         j = i
-        while d.robot.joints[j].parent >= 0:
+        while j >= 0 and d.is_body(d.robot.joints[j].parent):
             f = to_parent(d, j, f)
             j = d.robot.joints[j].parent
-            m[i, j] = m[j, i] = d.tape(sa.dot(screw(d, j), f))
+            if j >= 0:
+                m[a, d.position(j)] = m[d.position(j), a] = d.tape(sa.dot(screw(d, j), f))
+            else:
+                f = d.tape.vec(f)
+                for c in range(6):
+                    m[a, c] = m[c, a] = f[c]
+    if d.floating:
+        m[:6, :6] = composite_inertia(d, -1)
     return m

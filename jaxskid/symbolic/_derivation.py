@@ -6,6 +6,11 @@ per derivation and argument tuple, so quantities derived together share their in
 twist, its Jacobian columns, a composite inertia) and name each only once on the tape.
 
 The algorithms work body by body: ``d.n`` is the number of bodies and ``d.q[i]`` body i's joint position.
+With a floating base (:attr:`Robot.floating_base`), body ``-1``, the parent of the root joints, is the base:
+a body whose "joint" is the free-flyer, with screw matrix ``X = I_6``, relative configuration ``C = (R, p)``
+(the base pose) and velocity the base twist; its symbols are :attr:`Inputs.base`. Velocity-space quantities
+then have ``d.nv = 6 + n`` rows or columns, the base's first; the columns of a Jacobian are keyed by body
+index, and the base's six by :data:`BASE_COLUMNS` (:meth:`Derivation.position` gives an entry's index).
 A mimic joint's position and its derivatives (:mod:`jaxskid.model._mimic`) are symbols of their own, the
 first assignments of the tape (``_q_m{i} = a q_k + b``, ``_qd_m{i} = a qd_k``, ...), so every algorithm
 is in closed form in the independent coordinates and the tape's differentiation (:mod:`._adjoint`) follows
@@ -29,6 +34,9 @@ STATE_ORDERS = ("q", "qd", "qdd", "q3d", "q4d")
 WRENCH_ORDERS = ("wrench", "wrench_d", "wrench_dd")
 """The names of the end-effector wrenches and their time derivatives, by order."""
 
+BASE_COLUMNS = tuple(("base", c) for c in range(6))
+"""The keys of the floating base's six velocity coordinates ``(omega, v)`` among a Jacobian's columns."""
+
 
 def _symbols(prefix: str, n: int) -> tuple[sp.Symbol, ...]:
     return tuple(sp.Symbol(f"{prefix}{i}", real=True) for i in range(n))
@@ -49,6 +57,10 @@ class Inputs:
     the r-th time derivative of the end-effector wrenches (moment, force), one 6-tuple per end-effector
     (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters;
     ``cotangent`` the weights ``_ct{k}`` of a vector-Jacobian product of joint forces (shape ``(n,)``).
+    With a floating base, ``base[k]`` holds the base's symbols of order k: the position and unit quaternion
+    ``(x, y, z, qx, qy, qz, qw)`` (``_q_b0`` .. ``_q_b6``) for k = 0, then the base twist ``(omega, v)`` in the
+    base frame and its derivatives (``_qd_b0`` .. ``_qd_b5``, ...); ``tau`` and ``cotangent`` start with the base's
+    six entries (shape ``(6 + n,)``), and :meth:`coordinate` puts the base's symbols first.
     """
 
     state: tuple[tuple[sp.Symbol, ...], ...]
@@ -58,11 +70,13 @@ class Inputs:
     cotangent: tuple[sp.Symbol, ...] = ()
     coordinates: tuple[int, ...] | None = None
     """The body of each coordinate (``None``: every body, in order)."""
+    base: tuple[tuple[sp.Symbol, ...], ...] = ()
+    """The floating base's symbols by order (``()``: a fixed base)."""
 
     @classmethod
     def of(cls, robot: Robot) -> Inputs:
         """The inputs of ``robot``'s equations."""
-        n, n_ee = robot.n_dof, len(robot.end_effectors)
+        n, n_ee, nv = robot.n_dof, len(robot.end_effectors), robot.nv
         body = {i: k for k, i in enumerate(robot.coordinates)}
 
         def state(order: str) -> tuple[sp.Symbol, ...]:
@@ -72,19 +86,22 @@ class Inputs:
 
         return cls(
             state=tuple(state(k) for k in STATE_ORDERS),
-            tau=_symbols("_tau", n),
+            tau=_symbols("_tau", nv),
             wrenches=(_wrench_symbols("_w", n_ee), _wrench_symbols("_wrench_d", n_ee),
                       _wrench_symbols("_wrench_dd", n_ee)),
             params=tuple(symbol(p) for p in robot.parameters),
-            cotangent=_symbols("_ct", n),
+            cotangent=_symbols("_ct", nv),
             coordinates=None if n == robot.n_bodies else robot.coordinates,
+            base=tuple(_symbols(f"_{k}_b", 7 if k == "q" else 6) for k in STATE_ORDERS) if robot.floating_base else (),
         )
 
     def coordinate(self, k: int) -> tuple[sp.Symbol, ...]:
-        """The symbols of the k-th time derivative of the coordinates ``q`` (shape ``(n,)``)."""
+        """The symbols of the k-th time derivative of the coordinates ``q`` (shape ``(nq,)`` for k = 0, else
+        ``(nv,)``): the floating base's first, if any."""
+        base = self.base[k] if self.base else ()
         if self.coordinates is None:
-            return self.state[k]
-        return tuple(self.state[k][i] for i in self.coordinates)
+            return (*base, *self.state[k])
+        return (*base, *(self.state[k][i] for i in self.coordinates))
 
     @property
     def q(self) -> tuple[sp.Symbol, ...]:
@@ -141,6 +158,39 @@ class Derivation:
     def n(self) -> int:
         """The number of bodies (and of joints, mimic joints included)."""
         return self.robot.n_bodies
+
+    @property
+    def floating(self) -> bool:
+        """Whether body ``-1`` is a floating base (else it is the world, at rest)."""
+        return self.robot.floating_base
+
+    @property
+    def offset(self) -> int:
+        """The index of body 0's coordinate in a velocity-space vector: 6 with a floating base, else 0."""
+        return 6 if self.robot.floating_base else 0
+
+    @property
+    def nv(self) -> int:
+        """The size of a velocity-space vector over the bodies: ``offset + n``."""
+        return self.offset + self.n
+
+    @property
+    def bodies(self) -> tuple[int, ...]:
+        """The moving bodies, parents first: ``-1`` (the floating base), if any, then ``0 .. n - 1``."""
+        return tuple(range(-1 if self.robot.floating_base else 0, self.n))
+
+    @property
+    def columns(self) -> tuple:
+        """The keys of the velocity coordinates, in order: :data:`BASE_COLUMNS` (floating base), then bodies."""
+        return (*(BASE_COLUMNS if self.robot.floating_base else ()), *range(self.n))
+
+    def position(self, key) -> int:
+        """The index in a velocity-space vector of a column key (a body index or one of :data:`BASE_COLUMNS`)."""
+        return key[1] if isinstance(key, tuple) else key + self.offset
+
+    def is_body(self, i: int) -> bool:
+        """Whether body ``i`` moves: every body, and ``-1`` if it is a floating base."""
+        return i >= 0 or self.robot.floating_base
 
     @property
     def q(self) -> tuple[sp.Symbol, ...]:

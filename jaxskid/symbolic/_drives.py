@@ -8,7 +8,8 @@ module is the one place the drive terms are formed; the algorithms built on M an
 its time derivatives to those of tau (:mod:`._time_dynamics`), :func:`drive_columns` to the regressor, and
 :func:`with_rotor_energy` and :func:`with_rotor_momentum` the rotors' ``1/2 Ia qd^2`` and ``Ia qd`` to the
 kinetic energy and momentum (as Pinocchio's ``computeKineticEnergy`` does).
-Robots without drives get nothing added: their programs are those of a model without this module.
+Robots without drives get nothing added: their programs are those of a model without this module. A
+floating base has no drive: the vectors over the velocity coordinates get nothing in its six entries.
 """
 
 from __future__ import annotations
@@ -83,12 +84,14 @@ def with_drives(d: Derivation, tau: Vec, k: int = 0, *, inertial: bool = True) -
     """``tau`` plus :func:`drive_torques` (``tau`` itself for a robot without drives)."""
     if not d.robot.driven:
         return tau
-    return [d.tape(t + e) if e != 0 else t for t, e in zip(tau, drive_torques(d, k, inertial=inertial))]
+    drive = [0] * d.offset + drive_torques(d, k, inertial=inertial)
+    return [d.tape(t + e) if e != 0 else t for t, e in zip(tau, drive, strict=True)]
 
 
 def with_rotor_momentum(d: Derivation, p: Vec) -> Vec:
     """``p + Ia qd``: the generalized momentum ``(M + diag(Ia)) qd`` (``p`` itself without drives)."""
-    return [d.tape(x + ia * v) if ia != 0 else x for x, ia, v in zip(p, armature(d), d.qd)]
+    rotors = [0] * d.offset + [ia * v for ia, v in zip(armature(d), d.qd)]
+    return [d.tape(x + r) if r != 0 else x for x, r in zip(p, rotors, strict=True)]
 
 
 def with_rotor_energy(d: Derivation, kinetic: sp.Expr) -> sp.Expr:
@@ -99,9 +102,9 @@ def with_rotor_energy(d: Derivation, kinetic: sp.Expr) -> sp.Expr:
 
 def drive_columns(d: Derivation) -> list[Vec]:
     """The regressor's columns of the drive parameters: 4 per driven joint j, in joint order,
-    ``(Ia, fv, fc, fo) -> (qdd_j, qd_j, sign(qd_j), 1)`` in row j and 0 elsewhere. Shape: 4 n_driven x n."""
+    ``(Ia, fv, fc, fo) -> (qdd_j, qd_j, sign(qd_j), 1)`` in row j and 0 elsewhere. Shape: 4 n_driven x nv."""
     cols = []
     for i in d.robot.driven:
         for value in (d.qdd[i], d.qd[i], coulomb(d, d.qd[i]), sp.Integer(1)):
-            cols.append([value if r == i else sp.Integer(0) for r in range(d.n)])
+            cols.append([value if r == d.position(i) else sp.Integer(0) for r in range(d.nv)])
     return cols

@@ -7,7 +7,8 @@
 * the generalized momentum ``p(q, qd) = dK/dqd = M(q) qd = sum_i J_i^T M_i V_i``: the body momenta ``M_i V_i``
   carried to the joints by a Newton-Euler backward pass.
 
-The Euler-Lagrange route (:mod:`._lagrange`) forms K its own way, from the pose's time derivative.
+The sums run over every moving body, a floating base (body ``-1``) included. The Euler-Lagrange route
+(:mod:`._lagrange`) forms K its own way, from the pose's time derivative.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ def kinetic_energy(d: Derivation) -> sp.Expr:
     """``K = 1/2 sum_i V_i^T M_i V_i``."""
     t = d.tape
     total = []
-    for i in range(d.n):
+    for i in d.bodies:
         total.append(t(sa.dot(twist(d, i), body_momentum(d, i))))
     return t(sp.Add(*total) / 2)
 
@@ -41,7 +42,7 @@ def potential_energy(d: Derivation) -> sp.Expr:
     """``U = -sum_i g^T (R_i h_i + m_i p_i)``."""
     t, g = d.tape, gravity(d)
     total = []
-    for i in range(d.n):
+    for i in d.bodies:
         m, h, _ = sa.inertia_parts(inertia(d, i))
         r, p = absolute(d, i)
         total.append(t(-sa.dot(g, t.vec(sa.add(sa.matvec(r, h), sa.scale(p, m))))))
@@ -50,4 +51,4 @@ def potential_energy(d: Derivation) -> sp.Expr:
 
 def momentum(d: Derivation) -> Vec:
     """``p = M(q) qd``, the backward pass of the body momenta ``M_i V_i``."""
-    return backward(d, [body_momentum(d, i) for i in range(d.n)])
+    return backward(d, {i: body_momentum(d, i) for i in d.bodies})

@@ -22,7 +22,8 @@ friction smoothing, :func:`._drives.coulomb`), so that along any motion
 
     d/dt (K + U) = qd^T tau - P_friction,   (K_row + U_row)(t1) - (K_row + U_row)(t0) + int P_row dt = int qd^T tau dt
 
-(the power balance, Gautier, "Dynamic identification of robots with power model", ICRA 1997).
+(the power balance, Gautier, "Dynamic identification of robots with power model", ICRA 1997). A floating
+base (body ``-1``) is a body like the others, its 10 columns first, its momentum the first six rows.
 """
 
 from __future__ import annotations
@@ -65,26 +66,26 @@ def body_potential_row(d: Derivation, i: int) -> Vec:
 
 
 def kinetic_energy_regressor(d: Derivation) -> Vec:
-    """``K(q, qd) = row pi``, shape ``(10 n + 4 n_driven,)``."""
-    bodies = [e for i in range(d.n) for e in body_kinetic_row(d, i)]
+    """``K(q, qd) = row pi``, shape ``(10 n_b + 4 n_driven,)`` (``n_b`` bodies, a floating base included)."""
+    bodies = [e for i in d.bodies for e in body_kinetic_row(d, i)]
     rotor = _drives(d, lambda i: [d.tape(d.qd[i] ** 2 / 2), _ZERO, _ZERO, _ZERO])
     return bodies + rotor
 
 
 def potential_energy_regressor(d: Derivation) -> Vec:
-    """``U(q) = row pi``, shape ``(10 n + 4 n_driven,)``."""
-    bodies = [e for i in range(d.n) for e in body_potential_row(d, i)]
+    """``U(q) = row pi``, shape ``(10 n_b + 4 n_driven,)``."""
+    bodies = [e for i in d.bodies for e in body_potential_row(d, i)]
     return bodies + _drives(d, lambda i: [_ZERO] * 4)
 
 
 def friction_power_regressor(d: Derivation) -> Vec:
-    """``qd^T (fv qd + fc sign(qd) + fo) = row pi``, shape ``(10 n + 4 n_driven,)``: zero but in the
+    """``qd^T (fv qd + fc sign(qd) + fo) = row pi``, shape ``(10 n_b + 4 n_driven,)``: zero but in the
     friction and offset columns of the driven joints."""
     def columns(i):
         v = d.qd[i]
         return [_ZERO, d.tape(v**2), d.tape(v * coulomb(d, v)), v]
 
-    return [_ZERO] * (N_STANDARD * d.n) + _drives(d, columns)
+    return [_ZERO] * (N_STANDARD * len(d.bodies)) + _drives(d, columns)
 
 
 def momentum_entries(jac: Vec, v: Vec) -> Vec:
@@ -98,12 +99,12 @@ def momentum_entries(jac: Vec, v: Vec) -> Vec:
 
 
 def momentum_regressor(d: Derivation) -> list[Vec]:
-    """``M(q) qd = Y pi`` (with the rotors' ``Ia qd``), n x (10 n + 4 n_driven)."""
-    y = [[_ZERO] * (N_STANDARD * d.n) for _ in range(d.n)]
-    for k in range(d.n):
+    """``M(q) qd = Y pi`` (with the rotors' ``Ia qd``), nv x (10 n_b + 4 n_driven)."""
+    y = [[_ZERO] * (N_STANDARD * len(d.bodies)) for _ in range(d.nv)]
+    for b, k in enumerate(d.bodies):
         v = twist(d, k)
         for j, jac in jacobian_columns(d, k).items():
-            y[j][N_STANDARD * k: N_STANDARD * (k + 1)] = d.tape.vec(momentum_entries(jac, v))
+            y[d.position(j)][N_STANDARD * b: N_STANDARD * (b + 1)] = d.tape.vec(momentum_entries(jac, v))
     driven = d.robot.driven
-    return [row + [e for i in driven for e in ((d.qd[j] if i == j else _ZERO), _ZERO, _ZERO, _ZERO)]
-            for j, row in enumerate(y)]
+    return [row + [e for i in driven for e in ((d.qd[i] if d.position(i) == r else _ZERO), _ZERO, _ZERO, _ZERO)]
+            for r, row in enumerate(y)]

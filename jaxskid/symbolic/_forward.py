@@ -4,7 +4,9 @@ The mass matrix from the composite-rigid-body algorithm and the bias from one Ne
 factored *symbolically* as ``M = L^T D L`` with the branch-induced sparsity of the tree (Featherstone,
 "Efficient factorization of the joint-space inertia matrix for branched kinematic trees", IJRR 24(6),
 2005, Alg. LTDL), then solved by substitution: about ``n d^2 / 2`` extra operations for depth ``d``.
-Lowered like any quantity, the whole of forward dynamics becomes one fused kernel.
+Lowered like any quantity, the whole of forward dynamics becomes one fused kernel. A floating base's six
+coordinates enter the tree as a chain above the root joints (Featherstone 2005, sec. 7: a multi-DOF joint is
+a chain of single-DOF ones in the factorisation), so its 6x6 block is factored densely.
 """
 
 from __future__ import annotations
@@ -19,8 +21,15 @@ from ._rnea import bias_forces
 
 
 def forward_dynamics(d: Derivation, tau: Sequence[sp.Symbol]) -> list:
-    """``qdd`` (n expressions on the tape) for joint forces ``tau``, by the sparse ``L^T D L`` of M."""
-    return solve(d.tape, mass_matrix(d), tau, bias_forces(d), list(d.robot.parents))
+    """``qdd`` (nv expressions on the tape) for joint forces ``tau``, by the sparse ``L^T D L`` of M."""
+    return solve(d.tape, mass_matrix(d), tau, bias_forces(d), tree(d))
+
+
+def tree(d: Derivation) -> list[int]:
+    """The parent of each velocity coordinate (``-1``: none): the bodies' tree, below a chain of the floating
+    base's six coordinates, if any."""
+    base = list(range(-1, d.offset - 1))
+    return base + [d.position(p) if p >= 0 else d.offset - 1 for p in d.robot.parents]
 
 
 def solve(t, m, tau: Sequence, bias: Sequence, lam: Sequence[int]) -> list:

@@ -7,7 +7,8 @@ coordinates; *hybrid* ones are at the frame's origin in world axes, ``V^h = (R o
 ``dV^h/dt = (domega/dt, d^2p/dt^2) = (R domega^b/dt, R (dv^b/dt + omega^b x v^b))`` (the classical
 acceleration of the origin). The body acceleration ``dV^b/dt`` is Pinocchio's spatial acceleration in
 ``LOCAL``; Pinocchio's ``LOCAL_WORLD_ALIGNED`` spatial acceleration is ``(R domega^b/dt, R dv^b/dt)`` and
-differs from ours by ``(0, omega x v)``.
+differs from ours by ``(0, omega x v)``. A frame on body ``-1`` is fixed to the world, or moves with the
+floating base.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ def frame_pose(d: Derivation, name: str) -> tuple[list[Vec], Vec]:
     """(R, p) of a named frame in the world frame."""
     f = d.robot.frame(name)
     ro, po = pose_rows(f.offset)
-    if f.body < 0:
+    if not d.is_body(f.body):
         return ro, po
     rb, pb = absolute(d, f.body)
     if is_identity(f.offset):
@@ -47,11 +48,11 @@ def to_frame(d: Derivation, name: str, v: Sequence) -> Vec:
 
 def body_loads(d: Derivation, wrenches: Mapping[str, Sequence]) -> dict[int, Vec]:
     """Wrenches (moment, force) given in named frames, summed per body in body coordinates:
-    ``sum_f Ad(T_f^-1)^T W_f``. Frames fixed to the world carry no load."""
+    ``sum_f Ad(T_f^-1)^T W_f`` (body ``-1``: the floating base). Frames fixed to the world carry no load."""
     out: dict[int, Vec] = {}
     for name, w in wrenches.items():
         f = d.robot.frame(name)
-        if f.body >= 0:
+        if d.is_body(f.body):
             out[f.body] = sa.add(out.get(f.body, [0] * 6), sa.act_force(*pose_rows(f.offset), w))
     return out
 
@@ -59,7 +60,7 @@ def body_loads(d: Derivation, wrenches: Mapping[str, Sequence]) -> dict[int, Vec
 def frame_motion(d: Derivation, name: str, k: int) -> Vec:
     """Body twist (k = 0) or body acceleration (k = 1) of a named frame, in its own coordinates."""
     body = d.robot.frame(name).body
-    if body < 0:
+    if not d.is_body(body):
         return zero6()
     return to_frame(d, name, twist(d, body) if k == 0 else acceleration(d, body, Terms.MOTION))
 

@@ -8,6 +8,12 @@ wrenches (moment, force):
 * twist ``V_i = T_i V_p + X_i qd_i``;
 * acceleration ``Vd_i = T_i Vd_p + X_i qdd_i + ad(V_i) X_i qd_i``, with ``Vd_0 = (0, -g)`` for gravity.
 
+A floating base is body ``-1`` (:mod:`._derivation`): a joint with screw matrix ``X = I_6`` whose relative
+configuration is the base pose ``C_b = (R, p)``, ``R`` the rotation of the quaternion in ``q`` (of the
+normalised quaternion: :func:`base_pose`). Its twist ``V_b`` is the base velocity and its acceleration
+``Vd_b = dV_b/dt + (0, -R^T g)``; it has no velocity-product term, since ``ad(V_b) V_b = 0``. Without a
+floating base, body ``-1`` is the world: at rest, at the identity, with the acceleration ``(0, -g)``.
+
 The spatial algebra is :mod:`jaxskid.model._spatial`'s; this module names its results on the tape.
 """
 
@@ -77,8 +83,8 @@ def screw(d: Derivation, i: int) -> Vec:
 
 
 def inertia(d: Derivation, i: int) -> list[Vec]:
-    """The 6x6 mass-inertia matrix of body i in its frame, as rows."""
-    return sp.Matrix(d.robot.joints[i].inertia).tolist()
+    """The 6x6 mass-inertia matrix of body i in its frame, as rows (``i = -1``: the floating base's)."""
+    return sp.Matrix(d.robot.base_inertia if i < 0 else d.robot.joints[i].inertia).tolist()
 
 
 def gravity(d: Derivation) -> Vec:
@@ -105,11 +111,25 @@ def relative(d: Derivation, i: int) -> tuple[list[Vec], Vec]:
 
 
 @memoized
+def base_pose(d: Derivation) -> tuple[list[Vec], Vec]:
+    """(R, p) of the floating base in the world: ``p = (x, y, z)`` and ``R`` the rotation of the quaternion
+    ``(qx, qy, qz, qw)`` of ``q``, normalised: a quaternion that is not unit-norm gives the rotation of
+    ``quat / |quat|`` (:func:`jaxskid.model._spatial.quaternion_rotation`), and a zero one gives no rotation
+    (inf and nan)."""
+    q = d.inputs.base[0]
+    quat = q[3:7]
+    scale2 = d.tape(2 / sp.Add(*(e**2 for e in quat)))
+    return sa.quaternion_rotation(quat, scale2, d.tape.vec), list(q[:3])
+
+
+@memoized
 def absolute(d: Derivation, i: int) -> tuple[list[Vec], Vec]:
-    """(R, p) of body i's pose in the world frame."""
+    """(R, p) of body i's pose in the world frame (``i = -1``: the floating base)."""
+    if i < 0:
+        return base_pose(d)
     r, p = relative(d, i)
     parent = d.robot.joints[i].parent
-    if parent >= 0:
+    if d.is_body(parent):
         r, p = sa.compose(*absolute(d, parent), r, p, d.tape.vec)
     return r, p
 
@@ -135,23 +155,34 @@ def to_parent_inertia(d: Derivation, i: int, m: Sequence[Sequence]) -> sp.Matrix
 # ---------------------------------------------------------------------------------------------- motion
 @memoized
 def twist(d: Derivation, i: int) -> Vec:
-    """Body twist ``V_i`` (omega, v) of body i in its own frame."""
+    """Body twist ``V_i`` (omega, v) of body i in its own frame (``i = -1``: the floating base's, or zero)."""
+    if i < 0:
+        return list(d.inputs.base[1]) if d.floating else zero6()
     parent = d.robot.joints[i].parent
-    base = to_child(d, i, twist(d, parent)) if parent >= 0 else zero6()
-    return d.tape.vec(sa.add(base, sa.scale(screw(d, i), d.qd[i])))
+    return d.tape.vec(sa.add(to_child(d, i, twist(d, parent)), sa.scale(screw(d, i), d.qd[i])))
+
+
+def base_acceleration(d: Derivation, terms: Terms) -> Vec:
+    """``Vd`` of body ``-1`` with the chosen terms: the floating base's acceleration (its symbols) and the
+    fictitious ``(0, -R^T g)`` (gravity); for a fixed base, the world's ``(0, -g)`` or zero."""
+    g = gravity(d)
+    if not d.floating:
+        return [0, 0, 0, *(-e for e in g)] if terms.gravity else zero6()
+    parts = [zero6()]
+    if terms.acceleration:
+        parts.append(list(d.inputs.base[2]))
+    if terms.gravity:
+        parts.append([0, 0, 0, *(-e for e in sa.matTvec(base_pose(d)[0], g))])
+    return d.tape.vec(sa.add(*parts))
 
 
 @memoized
 def acceleration(d: Derivation, i: int, terms: Terms) -> Vec:
     """Body acceleration ``Vd_i`` with the chosen terms: ``qd`` (velocity), ``qdd`` (acceleration) and
-    the fictitious base acceleration ``(0, -g)`` (gravity)."""
-    parent = d.robot.joints[i].parent
-    if parent >= 0:
-        base = to_child(d, i, acceleration(d, parent, terms))
-    elif terms.gravity:
-        base = to_child(d, i, [0, 0, 0, *(-g for g in gravity(d))])
-    else:
-        base = zero6()
+    the fictitious base acceleration ``(0, -g)`` (gravity); ``i = -1``: :func:`base_acceleration`."""
+    if i < 0:
+        return base_acceleration(d, terms)
+    base = to_child(d, i, acceleration(d, d.robot.joints[i].parent, terms))
     x = screw(d, i)
     parts = [base]
     if terms.acceleration:

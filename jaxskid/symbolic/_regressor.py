@@ -18,6 +18,12 @@ respect to the parameters; it writes the 6x10 block of each body's wrench in clo
   zero otherwise. This equals propagating ``A_k`` to the root with the RNEA's ``T^T`` maps and projecting
   on each screw (``X_j^T T^T...T^T A_k = (T...T X_j)^T A_k``), at a sixth of the operations.
 
+A floating base is body ``-1``, whose 10 columns come first; its six rows are the base wrench, in which
+every body's ``A_k`` enters through the base columns ``J_{k,b}`` of its body Jacobian (Ayusawa, Venture &
+Nakamura, "Identifiability and identification of inertial parameters using the underactuated base-link
+dynamics for legged multibody systems", IJRR 33(3), 2014: the base rows alone are the dynamics without
+joint torques).
+
 The drives' parameters follow, 4 per driven joint in joint order (:func:`._drives.drive_columns`): the drive
 torque ``Ia qdd + fv qd + fc sign(qd) + fo`` of joint j is linear in ``(Ia, fv, fc, fo)`` with the row-j
 entries ``(qdd_j, qd_j, sign(qd_j), 1)``.
@@ -67,12 +73,14 @@ def body_wrench_columns(d: Derivation, i: int) -> list[Vec]:
 
 
 def regressor(d: Derivation) -> list[Vec]:
-    """``Y(q, qd, qdd)``, n x (10 n + 4 n_driven), with ``tau = Y pi`` (see the module docstring)."""
-    y = [[sp.Integer(0)] * (N_STANDARD * d.n) for _ in range(d.n)]
-    for k in range(d.n):
+    """``Y(q, qd, qdd)``, nv x (10 n_b + 4 n_driven), with ``tau = Y pi`` (``n_b`` bodies, the floating base
+    first; see the module docstring)."""
+    bodies = d.bodies
+    y = [[sp.Integer(0)] * (N_STANDARD * len(bodies)) for _ in range(d.nv)]
+    for b, k in enumerate(bodies):
         cols = body_wrench_columns(d, k)
         for j, jac in jacobian_columns(d, k).items():
             for c, col in enumerate(cols):
-                y[j][N_STANDARD * k + c] = d.tape(sa.dot(jac, col))
+                y[d.position(j)][N_STANDARD * b + c] = d.tape(sa.dot(jac, col))
     drives = drive_columns(d)
     return [row + [col[j] for col in drives] for j, row in enumerate(y)]

@@ -2,8 +2,10 @@
 
 Body-fixed (Featherstone, "Rigid Body Dynamics Algorithms", 2008, Alg. 5.1; Müller 2018, sec. 3): after
 the forward pass of :mod:`._kinematics`, body i's own wrench is ``W_i = M_i Vd_i - ad(V_i)^T M_i V_i``; the
-backward pass sums ``F_i = W_i + sum_children T_c^T F_c`` and projects ``tau_i = X_i^T F_i``. The joints'
-drives (:mod:`._drives`) add to tau and to the bias, not to C qd or Q_grav.
+backward pass sums ``F_i = W_i + sum_children T_c^T F_c`` and projects ``tau_i = X_i^T F_i``. A floating
+base (body ``-1``, ``X = I_6``) is one more body: its six rows are ``F_b = W_b + sum_roots T_r^T F_r``, the
+base wrench (moment, force) in the base frame (Featherstone 2008, sec. 9.2). The joints' drives
+(:mod:`._drives`) add to tau and to the bias, not to C qd or Q_grav.
 """
 
 from __future__ import annotations
@@ -29,17 +31,20 @@ def body_wrench(d: Derivation, i: int, terms: Terms) -> Vec:
     return d.tape.vec(sa.add(*parts))
 
 
-def backward(d: Derivation, wrenches: Sequence[Sequence]) -> Vec:
+def backward(d: Derivation, wrenches: Mapping[int, Sequence]) -> Vec:
     """The backward pass: ``F_i = W_i + sum_c T_c^T F_c`` from the bodies' own wrenches ``W_i`` (in
-    body frames), and ``tau_i = X_i^T F_i``. Returns tau, shape (n,)."""
-    f = list(wrenches)
+    body frames, by body index, ``-1`` the floating base; a body left out has none), and ``tau_i = X_i^T F_i``.
+    Returns tau, shape (nv,): the floating base's ``F_b`` first, if any."""
+    f = {i: list(w) for i, w in wrenches.items()}
     tau: Vec = [None] * d.n
     for i in reversed(range(d.n)):
-        w = d.tape.vec(f[i])
+        w = d.tape.vec(f.get(i, zero6()))
         tau[i] = d.tape(sa.dot(screw(d, i), w))
         parent = d.robot.joints[i].parent
-        if parent >= 0 and not is_zero(w):
-            f[parent] = sa.add(f[parent], to_parent(d, i, w))
+        if d.is_body(parent) and not is_zero(w):
+            f[parent] = sa.add(f.get(parent, zero6()), to_parent(d, i, w))
+    if d.floating:
+        return [*d.tape.vec(f.get(-1, zero6())), *tau]
     return tau
 
 
@@ -48,14 +53,14 @@ def newton_euler(d: Derivation, terms: Terms, loads: Mapping[int, Vec] | None = 
 
     ``loads`` adds wrenches (in body frames, by body index) that act like inertial loads, e.g. ``-F_ext``.
     """
-    wrenches = []
-    for i in range(d.n):
+    wrenches = {}
+    for i in d.bodies:
         parts = []
         if terms is not Terms.NONE:
             parts.append(body_wrench(d, i, terms))
         if loads and i in loads:
             parts.append(loads[i])
-        wrenches.append(sa.add(*parts) if parts else zero6())
+        wrenches[i] = sa.add(*parts) if parts else zero6()
     return backward(d, wrenches)
 
 

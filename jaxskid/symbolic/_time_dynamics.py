@@ -7,7 +7,9 @@ sum; the backward pass ``F_i = W_i + sum_c T_c^T F_c`` is differentiated with th
 Newton-Euler pass over differentiated kinematics, dM/dt a composite-rigid-body pass over differentiated
 composite inertias, and dC/dt the column-wise Newton-Euler pass of :mod:`._coriolis` over differentiated
 Jacobian columns and twists. Every intermediate is named on the shared tape, so the quantities requested
-together share their work.
+together share their work. A floating base (body ``-1``) is one more body of these passes, as in
+:mod:`._rnea` and :mod:`._crba`: its wrench jet gives the first six rows, and ``M^(k)``'s base block is the
+derivative of the whole tree's composite inertia.
 """
 
 from __future__ import annotations
@@ -31,22 +33,25 @@ from ._time_kinematics import (
 )
 
 
-def backward_derivative(d: Derivation, wrenches: Sequence[Sequence[Vec]], k: int) -> Vec:
+def backward_derivative(d: Derivation, wrenches: Mapping[int, Sequence[Vec]], k: int) -> Vec:
     """``tau^(k)`` of the Newton-Euler backward pass ``F_i = W_i + sum_c T_c^T F_c``, ``tau_i = X_i^T F_i``.
 
-    ``wrenches[i]`` holds the derivatives ``[W_i, W_i', ..., W_i^(k)]`` of body i's own wrench.
+    ``wrenches[i]`` holds the derivatives ``[W_i, W_i', ..., W_i^(k)]`` of body i's own wrench (by body
+    index, ``-1`` the floating base; a body left out has none). Returns shape (nv,), the base's six first.
     """
-    f = [[list(w) for w in wrenches[i]] for i in range(d.n)]
+    f = {i: [list(w) for w in wrenches.get(i, [zero6()] * (k + 1))] for i in d.bodies}
     tau: Vec = [sp.Integer(0)] * d.n
     for i in reversed(range(d.n)):
         jet = [d.tape.vec(w) for w in f[i]]
         tau[i] = d.tape(sa.dot(screw(d, i), jet[k]))
         parent = d.robot.joints[i].parent
-        if parent >= 0:
+        if d.is_body(parent):
             for r in range(k + 1):
                 moved = pulled(d, i, jet, r)
                 if not is_zero(moved):
                     f[parent][r] = sa.add(f[parent][r], moved)
+    if d.floating:
+        return [*d.tape.vec(f[-1][k]), *tau]
     return tau
 
 
@@ -73,7 +78,7 @@ def body_wrench_derivative(d: Derivation, i: int, k: int, terms: Terms) -> Vec:
 def newton_euler_derivative(d: Derivation, k: int, terms: Terms) -> Vec:
     """``tau^(k)`` (``Terms.INVERSE_DYNAMICS``, with the drives' ``Ia q^(k+2) + fv q^(k+1)``) or
     ``Q_grav^(k)`` (``Terms.GRAVITY``)."""
-    jets = [[body_wrench_derivative(d, i, r, terms) for r in range(k + 1)] for i in range(d.n)]
+    jets = {i: [body_wrench_derivative(d, i, r, terms) for r in range(k + 1)] for i in d.bodies}
     tau = backward_derivative(d, jets, k)
     return with_drives(d, tau, k) if terms is Terms.INVERSE_DYNAMICS else tau
 
@@ -82,39 +87,43 @@ def external_torques_derivative(d: Derivation, wrenches: Sequence[Mapping[str, S
     """``Q_ext^(k)``; ``wrenches[r]`` maps each end-effector to the r-th derivative of its wrench
     (moment, force), in its frame."""
     loads = [body_loads(d, wrenches[r]) for r in range(k + 1)]
-    jets = [[loads[r].get(i, zero6()) for r in range(k + 1)] for i in range(d.n)]
+    jets = {i: [loads[r].get(i, zero6()) for r in range(k + 1)] for i in d.bodies}
     return backward_derivative(d, jets, k)
 
 
 def mass_matrix_derivative(d: Derivation, k: int) -> sp.Matrix:
     """``M^(k)``: ``M_ij = X_j^T (T^T ... Ic_i X_i)``, the composite-rigid-body pass over ``Ic^(r)``."""
-    m = sp.zeros(d.n)
+    m = sp.zeros(d.nv)
     for i in range(d.n):
         x = screw(d, i)
         jet = [d.tape.vec(apply_composite(d, i, x) if r == 0 else
                           sa.inertia_apply(composite_inertia_derivative(d, i, r).tolist(), x)) for r in range(k + 1)]
-        m[i, i] = d.tape(sa.dot(x, jet[k]))
+        a = d.position(i)
+        m[a, a] = d.tape(sa.dot(x, jet[k]))
         j = i
-        while d.robot.joints[j].parent >= 0:
+        while j >= 0 and d.is_body(d.robot.joints[j].parent):
             jet = [pulled(d, j, jet, r) for r in range(k + 1)]
             j = d.robot.joints[j].parent
-            m[i, j] = m[j, i] = d.tape(sa.dot(screw(d, j), jet[k]))
+            if j >= 0:
+                m[a, d.position(j)] = m[d.position(j), a] = d.tape(sa.dot(screw(d, j), jet[k]))
+            else:
+                top = d.tape.vec(jet[k])
+                for c in range(6):
+                    m[a, c] = m[c, a] = top[c]
+    if d.floating:
+        m[:6, :6] = composite_inertia_derivative(d, -1, k)
     return m
 
 
 def coriolis_matrix_derivative(d: Derivation, k: int) -> sp.Matrix:
     """``C^(k)``: column c is the backward pass of ``W_i = M_i Jd_{i,c} + B(V_i) J_{i,c}``, with ``B``
     bilinear in (V, J), differentiated by Leibniz."""
-    out = sp.zeros(d.n)
-    for c in range(d.n):
-        wrenches = []
-        for i in range(d.n):
-            if c not in jacobian_columns(d, i):
-                wrenches.append([zero6()] * (k + 1))
-                continue
-            wrenches.append([coriolis_wrench_derivative(d, i, c, r) for r in range(k + 1)])
+    out = sp.zeros(d.nv)
+    for c in d.columns:
+        wrenches = {i: [coriolis_wrench_derivative(d, i, c, r) for r in range(k + 1)]
+                    for i in d.bodies if c in jacobian_columns(d, i)}
         for i, e in enumerate(backward_derivative(d, wrenches, k)):
-            out[i, c] = e
+            out[i, d.position(c)] = e
     return out
 
 

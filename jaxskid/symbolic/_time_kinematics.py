@@ -19,6 +19,12 @@ so ``T_i^(m) = P_m T_i`` with ``P_0 = 1`` and ``P_{m+1} = dP_m/dt - qd_i P_m ad(
 With these, the twist recursion ``V_i = T_i V_p + X_i qd_i`` gives ``V_i^(k) = (T_i V_p)^(k) + X_i q_i^(k+1)``
 and the body Jacobian columns ``J_{i,j} = T_i J_{p,j}`` give their derivatives. ``k`` is always the
 derivative order; every intermediate is named on the derivation's tape.
+
+A floating base (body ``-1``, :mod:`._kinematics`) is moved by ``C_b = (R, p)`` with ``C_b^-1 dC_b/dt = V_b``,
+so ``d/dt Ad(C_b^-1) = -ad(V_b) Ad(C_b^-1)``: its twist's derivatives are its own symbols (``qdd``, ``q3d``,
+... of the base), its gravity term ``u_b = Ad(C_b^-1) (0, -g)`` has ``u_b^(k) = -sum_m C(k-1, m) ad(V_b^(m))
+u_b^(k-1-m)``, and its Jacobian columns ``e_c`` are constant; the root joints' relative transforms are
+differentiated as every other joint's.
 """
 
 from __future__ import annotations
@@ -112,16 +118,17 @@ def pulled(d: Derivation, i: int, jet: Sequence[Vec], k: int) -> Vec:
 # ---------------------------------------------------------------------------------------------- kinematics
 @memoized
 def twist_derivative(d: Derivation, i: int, k: int) -> Vec:
-    """``V_i^(k)``: body twist (k = 0), body acceleration without gravity (k = 1), jerk, ..."""
-    if i < 0:
-        return zero6()
+    """``V_i^(k)``: body twist (k = 0), body acceleration without gravity (k = 1), jerk, ... (``i = -1``: the
+    floating base's, its own symbols; zero for the world)."""
     if k == 0:
         return twist(d, i)
     if k == 1:
         return acceleration(d, i, Terms.MOTION)
+    if i < 0:
+        return list(d.inputs.base[k + 1]) if d.floating else zero6()
     parent = d.robot.joints[i].parent
     base = zero6()
-    if parent >= 0:
+    if d.is_body(parent):
         base = transported(d, i, [twist_derivative(d, parent, j) for j in range(k + 1)], k)
     return d.tape.vec(sa.add(base, sa.scale(screw(d, i), d.inputs.state[k + 1][i])))
 
@@ -131,8 +138,12 @@ def gravity_derivative(d: Derivation, i: int, k: int) -> Vec:
     """``u_i^(k)`` with ``u_i = Ad(C_i^-1) (0, -g)``: the fictitious base acceleration in body i's frame."""
     if k == 0:
         return acceleration(d, i, Terms.GRAVITY)
+    if i < 0:  # the floating base: d/dt u_b = -ad(V_b) u_b
+        terms = [(-comb(k - 1, m), sa.ad_apply(twist_derivative(d, -1, m), gravity_derivative(d, -1, k - 1 - m)))
+                 for m in range(k)]
+        return d.tape.vec(_combine(terms))
     parent = d.robot.joints[i].parent
-    if parent >= 0:
+    if d.is_body(parent):
         jet = [gravity_derivative(d, parent, j) for j in range(k + 1)]
     else:
         jet = [[0, 0, 0, *(-g for g in gravity(d))]] + [zero6()] * k
@@ -142,6 +153,8 @@ def gravity_derivative(d: Derivation, i: int, k: int) -> Vec:
 @memoized
 def jacobian_column_derivative(d: Derivation, i: int, j: int, k: int) -> Vec:
     """``J_{i,j}^(k)``: derivative of column j of body i's body Jacobian (j supports i)."""
+    if i < 0:  # the floating base's own columns, constant
+        return jacobian_columns(d, i)[j] if k == 0 else zero6()
     if j == i:
         return screw(d, i) if k == 0 else zero6()
     if k == 0:

@@ -250,7 +250,10 @@ class RecursiveDynamics:
 
 
 def recursive_dynamics(robot: Robot) -> RecursiveDynamics:
-    """The numeric recursive evaluation of ``robot``'s M, Q_grav, C qd and tau in JAX (no mimic joints)."""
+    """The numeric recursive evaluation of ``robot``'s M, Q_grav, C qd and tau in JAX (a fixed base, no mimic
+    joints)."""
+    if robot.floating_base:
+        raise RequestError(f"the recursive evaluation has a fixed base; robot {robot.name!r} floats")
     if robot.mimic_joints:
         raise RequestError(f"the recursive evaluation has no mimic joints; robot {robot.name!r} has "
                            f"{', '.join(robot.mimic_joints)}")
