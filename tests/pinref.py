@@ -48,11 +48,17 @@ def inertia_to_pin(m6: np.ndarray) -> pin.Inertia:
 
 
 def to_pinocchio(robot: Robot, params: dict[str, float]):
-    """(model, frame names) with one Pinocchio joint per jaxskid joint, in the same order."""
+    """(model, frame names) with one Pinocchio joint per jaxskid joint, in the same order; a floating base is a
+    ``JointModelFreeFlyer`` first, carrying the base inertia (Pinocchio's q, v layouts then: see
+    :func:`velocity_to_pin`)."""
     num = numeric(robot, params)
     model = pin.Model()
     g = num(sp.Matrix(robot.gravity)).reshape(3)
     model.gravity = pin.Motion(g, np.zeros(3))
+    root = 0
+    if robot.floating_base:
+        root = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "root_joint")
+        model.appendBodyToJoint(root, inertia_to_pin(num(robot.base_inertia)), pin.SE3.Identity())
     joint_ids = []
     shift = []  # translation from the Pinocchio joint frame to the jaxskid body frame
     for i, j in enumerate(robot.joints):
@@ -65,7 +71,7 @@ def to_pinocchio(robot: Robot, params: dict[str, float]):
             r = np.zeros(3)
             jm = pin.JointModelPrismaticUnaligned(v / np.linalg.norm(v))
         b = _se3(num(j.origin))
-        parent_id = 0 if j.parent < 0 else joint_ids[j.parent]
+        parent_id = root if j.parent < 0 else joint_ids[j.parent]
         parent_shift = np.zeros(3) if j.parent < 0 else shift[j.parent]
         placement = _translation(-parent_shift) * b * _translation(r)
         jid = model.addJoint(parent_id, jm, placement, j.name)
@@ -78,13 +84,22 @@ def to_pinocchio(robot: Robot, params: dict[str, float]):
         f = robot.frame(name)
         off = _se3(num(f.offset))
         if f.body < 0:
-            model.addFrame(pin.Frame(name, 0, 0, off, pin.FrameType.OP_FRAME))
+            model.addFrame(pin.Frame(name, root, 0, off, pin.FrameType.OP_FRAME))
         else:
             model.addFrame(
                 pin.Frame(name, joint_ids[f.body], 0, _translation(-shift[f.body]) * off, pin.FrameType.OP_FRAME)
             )
         names.append(name)
     return model, names
+
+
+def velocity_to_pin(x: np.ndarray, floating: bool, axis: int = -1) -> np.ndarray:
+    """A velocity-space array in jaxskid's order (a floating base's (omega, v) first) in Pinocchio's ((v, omega)
+    first) along ``axis``; unchanged for a fixed base. Its own inverse."""
+    if not floating:
+        return x
+    idx = np.r_[3:6, 0:3, 6:x.shape[axis]]
+    return np.take(x, idx, axis=axis)
 
 
 def to_omega_v(m6_pin: np.ndarray) -> np.ndarray:

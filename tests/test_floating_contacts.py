@@ -6,7 +6,8 @@ import jax.numpy as jnp
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import URDFS
+from helpers import ROBOTS_DIR, URDFS
+from pinref import to_pinocchio
 
 import jaxskid
 
@@ -18,18 +19,39 @@ def to_pin(v):
     return np.concatenate([v[3:6], v[:3], v[6:]])
 
 
+NAMES = ["mass_matrix", "inverse_dynamics", "constraint_jacobian", "constraint_drift", "constraint_residual"]
+
+
 @pytest.fixture(scope="module")
 def standing():
     robot = jaxskid.load(URDFS["solo12"], floating_base=True)
     at = dict(zip(robot.joint_names, STAND))  # the feet anchored where they are standing, base at the origin
     robot = robot.with_constraints([jaxskid.PointContact(f, at=at) for f in FEET])
-    names = ["mass_matrix", "inverse_dynamics", "constraint_jacobian", "constraint_drift", "constraint_residual"]
-    dyn = jaxskid.lower(robot, names)
+    dyn = jaxskid.lower(robot, NAMES)
     model = pin.buildModelFromUrdf(str(URDFS["solo12"]), pin.JointModelFreeFlyer())
     return robot, dyn, model
 
 
-def kkt(model, q, v, tau):
+def test_seed_quadruped_in_contact():
+    """robots/quadruped_contact.yaml: its constraints hold at the standing pose they were anchored at, and its
+    constrained dynamics match a KKT solve on the Pinocchio model rebuilt from it (tests/pinref.py)."""
+    robot = jaxskid.load(ROBOTS_DIR / "quadruped_contact.yaml")
+    dyn = jaxskid.lower(robot, NAMES)
+    model, _ = to_pinocchio(robot, robot.default_params())
+    feet = robot.end_effectors
+    stand = np.tile([0.0, 0.8, -1.6], 4)
+    q0 = np.concatenate([[0, 0, 0, 0, 0, 0, 1.0], stand])
+    assert np.abs(np.asarray(dyn.constraint_residual(q0))).max() <= 1e-12
+    rng = np.random.default_rng(3)
+    q = q0 + np.concatenate([rng.normal(0, 0.05, 3), np.zeros(4), rng.normal(0, 0.1, 12)])
+    v, tau = rng.normal(size=robot.nv), np.concatenate([np.zeros(6), rng.normal(0, 5.0, 12)])
+    qdd, lam = dyn.constrained_forward_dynamics(q, v, tau)
+    qdd_ref, lam_ref = kkt(model, q, to_pin(v), to_pin(tau), feet)
+    assert np.abs(to_pin(np.asarray(qdd)) - qdd_ref).max() <= 1e-9 * max(1, np.abs(qdd_ref).max())
+    assert np.abs(np.asarray(lam) - lam_ref).max() <= 1e-9 * max(1, np.abs(lam_ref).max())
+
+
+def kkt(model, q, v, tau, feet=FEET):
     """(qdd, lambda) of M qdd + h = tau + A^T lambda, A qdd = -Adot v, all in Pinocchio's velocity order."""
     data = model.createData()
     m = pin.crba(model, data, q)
@@ -39,7 +61,7 @@ def kkt(model, q, v, tau):
     pin.forwardKinematics(model, data, q, v, np.zeros(model.nv))
     pin.updateFramePlacements(model, data)
     rows, drift = [], []
-    for name in FEET:
+    for name in feet:
         fid = model.getFrameId(name)
         rows.append(pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3])
         drift.append(pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).linear)

@@ -12,7 +12,7 @@ import sympy as sp
 
 import jaxskid
 from jaxskid.testing import closed_form
-from pinref import to_pinocchio
+from pinref import to_pinocchio, velocity_to_pin
 
 ROBOTS = sorted((Path(__file__).parents[1] / "robots").glob("*.yaml"))
 QUANTITIES = ["mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics", "forward_kinematics"]
@@ -21,7 +21,7 @@ QUANTITIES = ["mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dyn
 def test_there_are_seed_robots():
     names = {p.stem for p in ROBOTS}
     assert {"single_pendulum", "double_pendulum", "arm_2r", "prr", "hopping_leg", "arm_3dof", "quadruped_12dof",
-            "four_bar"} <= names
+            "four_bar", "quadruped_contact"} <= names
 
 
 @pytest.mark.parametrize("path", ROBOTS, ids=lambda p: p.stem)
@@ -33,10 +33,12 @@ def test_seed_robot_matches_pinocchio(path):
     data = model.createData()
     dyn = jaxskid.lower(robot, QUANTITIES)
     rng = np.random.default_rng(11)
-    n = robot.n_dof
-    q, qd, qdd = rng.uniform(-2, 2, size=(3, 200, n))
+    q, qd, qdd = _states(robot, rng)
     m, cqd, g, tau = (np.asarray(x) for x in (dyn.mass_matrix(q), dyn.coriolis_torques(q, qd), dyn.gravity_torques(q),
                                               dyn.inverse_dynamics(q, qd, qdd)))
+    fb = robot.floating_base
+    m = velocity_to_pin(velocity_to_pin(m, fb, -1), fb, -2)
+    cqd, g, tau, qd, qdd = (velocity_to_pin(x, fb) for x in (cqd, g, tau, qd, qdd))
     poses = dyn.forward_kinematics(q)
     for k in range(200):
         mp = pin.crba(model, data, q[k])
@@ -48,6 +50,17 @@ def test_seed_robot_matches_pinocchio(path):
         pin.framesForwardKinematics(model, data, q[k])
         for f in frames:
             assert np.abs(np.asarray(poses[f][k]) - data.oMf[model.getFrameId(f)].homogeneous).max() <= 1e-9
+
+
+def _states(robot, rng, count: int = 200):
+    """Random (q, qd, qdd): joint positions in [-2, 2]; a floating base's position in [-2, 2] and a random unit
+    quaternion; velocities and accelerations of nv."""
+    q = rng.uniform(-2, 2, size=(count, robot.nq))
+    if robot.floating_base:
+        quat = rng.normal(size=(count, 4))
+        q[:, 3:7] = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+    qd, qdd = rng.uniform(-2, 2, size=(2, count, robot.nv))
+    return q, qd, qdd
 
 
 def test_arm_2r_textbook_closed_form():

@@ -316,7 +316,7 @@ def test_seed_robots_mix_syntaxes():
     texts = {p.stem: yaml.safe_load(p.read_text()) for p in ROBOTS}
     representations = {d.get("representation", "spatial") for d in texts.values()}
     assert representations == {"spatial", "body_fixed"}
-    assert len(ROBOTS) == 8
+    assert len(ROBOTS) == 9
 
 
 def test_single_pendulum_matches_the_textbook():
