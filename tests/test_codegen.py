@@ -83,7 +83,7 @@ def close(got, ref, what: str) -> None:
     assert err <= RTOL, f"{what}: relative error {err:.3g}"
 
 
-@pytest.fixture(scope="module", params=["arm_2r", "hopping_leg", "panda7"])
+@pytest.fixture(scope="module", params=["arm_2r", "hopping_leg"])
 def case(request, tmp_path_factory):
     case = Case(request.param, tmp_path_factory.mktemp(f"gen-{request.param}"))
     case.generate()

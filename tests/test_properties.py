@@ -168,7 +168,7 @@ def param_vector(robot, eqs) -> np.ndarray:
 
 
 @pytest.mark.slow
-@deterministic(60)
+@deterministic(40)
 @given(robot=random_trees())
 def test_random_trees_match_pinocchio_and_m_is_spd(robot):
     eqs = jaxskid.derive(robot, QUANTITIES)
@@ -184,7 +184,7 @@ def test_random_trees_match_pinocchio_and_m_is_spd(robot):
 
 
 @pytest.mark.slow
-@deterministic(30)
+@deterministic(20)
 @given(robot=random_trees())
 def test_mdot_minus_2c_is_skew_symmetric(robot):
     eqs = jaxskid.derive(robot, ("mass_matrix", "coriolis_matrix"))
