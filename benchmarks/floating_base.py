@@ -101,7 +101,7 @@ def contacts(batch: int, repeats: int, rng) -> None:
         models.append(pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, frame.parentJoint, frame.placement,
                                                pin.LOCAL_WORLD_ALIGNED))
         datas.append(models[-1].createData())
-    pin.initConstraintDynamics(model, data, models)
+    pin.initConstraintDynamics(model, data, models, datas)
     row("solo12 constrained forward dynamics",
         median_time(lambda: dyn.constrained_forward_dynamics(q, v, tau)[0].block_until_ready(), repeats) / batch,
         per_call(lambda *x: pin.constraintDynamics(model, data, *x, models, datas), (q, v, tau), repeats))
