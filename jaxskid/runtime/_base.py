@@ -20,6 +20,17 @@ from ..model._parameters import ParameterLayout
 from ._parameters import HostParameters, param_array
 
 
+def metadata_fields(meta: Mapping) -> dict:
+    """The keyword arguments of :class:`QuantitySet` from a ``METADATA`` dict
+    (:meth:`jaxskid.codegen.Layout.metadata`)."""
+    return dict(
+        robot_name=meta["robot"], joint_names=meta["joint_names"], frame_names=meta["frame_names"],
+        end_effectors=meta["end_effectors"], layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
+        signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
+        driven=meta.get("driven", ()), floating_base=meta.get("floating_base", False),
+    )
+
+
 class QuantitySet:
     """The quantities of one robot, with its metadata and parameters.
 

@@ -18,8 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import ShapeError
-from ..model._parameters import ParameterLayout
-from ._base import QuantitySet
+from ._base import QuantitySet, metadata_fields
 from ._ffi import library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
@@ -72,17 +71,7 @@ class Dynamics(QuantitySet):
                  native: Callable | None = None):
         meta = namespace["METADATA"]
         quantities = meta["quantities"]
-        super().__init__(
-            robot_name=meta["robot"],
-            joint_names=meta["joint_names"],
-            frame_names=meta["frame_names"],
-            end_effectors=meta["end_effectors"],
-            layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
-            signatures={k: (m["args"], m["shape"]) for k, m in quantities.items()},
-            catalogue=catalogue,
-            driven=meta.get("driven", ()),
-            floating_base=meta.get("floating_base", False),
-        )
+        super().__init__(**metadata_fields(meta), catalogue=catalogue)
         self.source = source
         self.path = path
         self._meta = quantities

@@ -22,8 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .._errors import ShapeError
-from ..model._parameters import ParameterLayout
-from ._base import QuantitySet
+from ._base import QuantitySet, metadata_fields
 
 
 # ---------------------------------------------------------------------------------------------- calling
@@ -68,17 +67,6 @@ def _arr(x, shape, what):
 
 
 # ---------------------------------------------------------------------------------------------- metadata
-def _metadata_fields(meta: Mapping) -> dict:
-    """The keyword arguments of :class:`QuantitySet` from a ``METADATA`` dict
-    (:meth:`jaxskid.codegen.Layout.metadata`)."""
-    return dict(
-        robot_name=meta["robot"], joint_names=meta["joint_names"], frame_names=meta["frame_names"],
-        end_effectors=meta["end_effectors"], layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
-        signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
-        driven=meta.get("driven", ()), floating_base=meta.get("floating_base", False),
-    )
-
-
 # ---------------------------------------------------------------------------------------------- native
 class NativeDynamics(QuantitySet):
     """Compiled quantities of one robot for single states. Build it with :func:`jaxskid.compile_native`.
@@ -108,7 +96,7 @@ class NativeDynamics(QuantitySet):
 
     def __init__(self, metadata: Mapping, functions: Mapping[str, Callable], *, ffi=None, path: Path | None = None,
                  source: str = "", catalogue: Collection[str] = (), backend: str | None = None, module=None):
-        super().__init__(**_metadata_fields(metadata), catalogue=catalogue)
+        super().__init__(**metadata_fields(metadata), catalogue=catalogue)
         self._docs = {k: f"{m['equation']}: {m['doc']}" for k, m in metadata["quantities"].items()}
         self.backend = backend or ("ctypes" if ffi is None else "cffi")
         self.path = path
