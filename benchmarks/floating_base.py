@@ -1,10 +1,11 @@
-"""Floating-base quantities against Pinocchio in the same run: tau and M of solo12 and the G1 with a free-flyer
-root, and the constrained forward dynamics of solo12 standing on four point contacts.
+"""Floating-base quantities against Pinocchio in the same run: tau, M and forward dynamics of solo12 and the G1
+with a free-flyer root, and the constrained forward dynamics of solo12 standing on four point contacts.
 
     python benchmarks/floating_base.py [--batch 4096] [--repeats 7]
 
 jaxskid: the median time per state of the public function on a batch (float64; ``q`` of shape (batch, nq)).
-Pinocchio: the median time per call from Python of ``rnea``, ``crba`` and ``constraintDynamics`` (four
+Forward dynamics is solved from M and tau (no closed form lowered). Pinocchio: the median time per call from
+Python of ``rnea``, ``crba``, ``aba`` and ``constraintDynamics`` (four
 ``RigidConstraintModel`` 3-D contacts in LOCAL_WORLD_ALIGNED, ``initConstraintDynamics`` done once beforehand),
 on models built with ``JointModelFreeFlyer``. The ratio is Pinocchio's time over jaxskid's (> 1: jaxskid is
 faster per state).
@@ -78,6 +79,10 @@ def free_flyer(name: str, batch: int, repeats: int, rng) -> None:
         per_call(lambda *x: pin.rnea(model, data, *x), (q, v, a), repeats))
     row(f"{name} M", median_time(lambda: dyn.mass_matrix(q).block_until_ready(), repeats) / batch,
         per_call(lambda x: pin.crba(model, data, x), (q,), repeats))
+    dyn.forward_dynamics(q, v, a).block_until_ready()  # M and tau solved on M's sparsity (runtime/_sparse.py)
+    row(f"{name} forward dynamics", median_time(lambda: dyn.forward_dynamics(q, v, a).block_until_ready(),
+                                                repeats) / batch,
+        per_call(lambda *x: pin.aba(model, data, *x), (q, v, a), repeats))
 
 
 def contacts(batch: int, repeats: int, rng) -> None:

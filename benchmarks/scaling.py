@@ -1,7 +1,7 @@
 """How the cost of each quantity grows with the robot, against Pinocchio in the same run.
 
     python benchmarks/scaling.py [--robots ur5,panda,solo12,g1,g1_hands] [--batch 4096] [--repeats 7]
-                                 [--quantities ...] [--plot benchmarks/out/scaling.png]
+                                 [--quantities ...] [--plot benchmarks/out/scaling.png] [--no-floating]
 
 Robots (fixed base, from example-robot-data): UR5 (6 DOF), Panda (7, fingers locked), solo12 (12), the
 Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. For each robot and quantity:
@@ -39,6 +39,7 @@ import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
 from core import median_time as _median  # noqa: E402  (benchmarks/core.py, beside this script)
+import floating_base  # noqa: E402  (beside this script too)
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
@@ -173,6 +174,9 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=4096)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--plot", type=Path, default=Path(__file__).parent / "out" / "scaling.png")
+    parser.add_argument("--floating", action=argparse.BooleanOptionalAction, default=True,
+                        help="then the floating-base rows of benchmarks/floating_base.py: tau and M of solo12 and "
+                             "the G1 on a free-flyer, and solo12's constrained forward dynamics on four contacts")
     args = parser.parse_args()
     quantities = args.quantities.split(",")
     if any(q not in STATES for q in quantities):
@@ -187,6 +191,9 @@ def main() -> None:
     if args.plot:
         plot(rows, args.plot)
         print(f"plot: {args.plot}")
+    if args.floating:
+        print()
+        floating_base.main(args.batch, args.repeats)
 
 
 if __name__ == "__main__":

@@ -196,7 +196,8 @@ def test_matches_pinocchio(name):
 
 @pytest.mark.slow
 def test_g1_matches_pinocchio():
-    """The G1 humanoid (29 joints): tau and M; prints the derive and lower time."""
+    """The G1 humanoid (29 joints): tau, M, and forward dynamics solved on M's sparsity from them (against
+    aba); prints the derive and lower time."""
     r = robot("g1")
     names = ["inverse_dynamics", "mass_matrix"]
     t0 = time.perf_counter()
@@ -204,8 +205,9 @@ def test_g1_matches_pinocchio():
     s = random_states(r, 2, seed=2)
     got = {name: np.asarray(getattr(dyn, name)(*(s[a][0] for a in dyn.signature(name)[0]))) for name in names}
     print(f"G1 floating base: derive, lower and first call of tau and M {time.perf_counter() - t0:.1f} s")
+    got["forward_dynamics"] = np.asarray(dyn.forward_dynamics(s["q"][0], s["qd"][0], s["tau"][0]))
     ref = pinocchio_reference("g1", s["q"][0], s["qd"][0], s["qdd"][0], s["tau"][0])
-    for name in names:
+    for name in got:
         assert rel_err(got[name], ref[name]) < TOL, name
 
 

@@ -144,7 +144,7 @@ def test_closed_form_forward_dynamics_on_the_tape():
 
 
 def test_ldl_solve_matches_numpy_and_rejects_indefinite_matrices():
-    from jaxskid.runtime._forward import ldl_solve
+    from jaxskid.runtime._ldl import ldl_solve
 
     rng = np.random.default_rng(7)
     a = rng.normal(size=(6, 6))

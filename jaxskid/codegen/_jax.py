@@ -39,7 +39,7 @@ from .._kernels import SOURCE as KERNELS_SOURCE
 from ..equations._derive import Equations
 from ._common import Kernel, Layout, NumberTweaks, statements, unravel
 
-GENERATOR_VERSION = "9"
+GENERATOR_VERSION = "10"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 
@@ -158,6 +158,9 @@ def function_source(layout: Layout, k: Kernel, printer: JaxPrinter) -> str:
 
     lines = [f"def _{k.name}({args}, spread):"]
     lines += ["    " + line for line in statements(k, printer, read)]
+    if k.shape:  # the entries form: the structurally nonzero entries by flat index, unassembled
+        nonzero = ", ".join(f"{i}: {printer.doprint(v)}" for i, v in enumerate(k.outputs) if v != 0)
+        lines += ["    if spread is _entries:", f"        return {{{nonzero}}}"]
     lines += ["    " + line for line in _assemble(k.shape, k.outputs, printer, f"jnp.result_type({k.args[0]}, p)")]
     spread = f"_spread({assembly_shape(k.shape)!r})" if k.shape else "_same"
     lines += [

@@ -5,7 +5,8 @@ and the forward-dynamics solve. No SymPy here: everything comes from generated m
 
 from ._base import QuantitySet
 from ._dynamics import Dynamics
-from ._forward import forward_dynamics, ldl_solve, mass_matrix_condition
+from ._forward import forward_dynamics, mass_matrix_condition
 from ._jit import compiler_options, jit
+from ._ldl import ldl_solve
 from ._native import NativeDynamics
 from ._parameters import HostParameters, param_array

@@ -11,8 +11,8 @@ with the multipliers ``lambda`` (m) are (Featherstone, "Rigid Body Dynamics Algo
 the second the constraint twice differentiated, with Baumgarte's stabilisation (Baumgarte, "Stabilization
 of constraints and integrals of motion in dynamical systems", Comput. Methods Appl. Mech. Eng. 1, 1972):
 the violation then obeys ``e'' + 2 alpha e' + beta^2 e = 0`` instead of drifting. They are solved by the
-Schur complement of ``M`` in the KKT matrix, with ``M = L D L^T`` factored once (:func:`ldl_factor`) and
-used for the ``m + 1`` right-hand sides:
+Schur complement of ``M`` in the KKT matrix, with ``M`` factored once along the tree's sparsity and the
+constraint rows kept sparse (:func:`jaxskid.runtime._sparse.kkt`, on the quantities' nonzero entries):
 
     lambda = (A M^-1 A^T + eps 1)^-1 (gamma - A M^-1 (tau - h)),    qdd = M^-1 (tau - h + A^T lambda).
 
@@ -40,8 +40,9 @@ from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
 from ._forward import _bias
 from ._jit import jit
-from ._ldl import ldl_factor, ldl_solve, ldl_substitute, materialize
+from ._ldl import _assemble, materialize
 from ._parameters import param_array
+from ._sparse import _minus, _plus, kkt
 
 CONSTRAINT_QUANTITIES = ("constraint_jacobian", "constraint_drift", "constraint_residual")
 """The quantities of a robot's constraints (:meth:`jaxskid.Robot.with_constraints`)."""
@@ -91,18 +92,6 @@ def options(stabilization, regularization) -> tuple[Baumgarte | None, float]:
     return stabilization, float(regularization)
 
 
-def kkt_solve(factor, a: jax.Array, r1: jax.Array, r2: jax.Array, eps: float) -> tuple[jax.Array, jax.Array]:
-    """``(x, lambda)`` with ``M x - A^T lambda = r1`` and ``A x + eps lambda = r2``, ``M`` given by its
-    :func:`ldl_factor`: the Schur complement ``A M^-1 A^T + eps 1`` solved by :func:`ldl_solve`."""
-    x1 = ldl_substitute(factor, r1)
-    w = jax.vmap(lambda row: ldl_substitute(factor, row))(a)  # rows M^-1 a_k: (M^-1 A^T)^T
-    s = a @ w.T
-    if eps:
-        s = s + eps * jnp.eye(s.shape[0], dtype=s.dtype)
-    lam = ldl_solve(s, r2 - a @ x1)
-    return x1 + lam @ w, lam
-
-
 def _functions(dyn, batched: bool) -> dict[str, Callable]:
     """The lowered functions constrained dynamics uses, of one state: ``batched`` for the solve, plain for
     the forward-mode passes of the derivative (see :meth:`jaxskid.Dynamics.raw`)."""
@@ -120,10 +109,57 @@ def _functions(dyn, batched: bool) -> dict[str, Callable]:
     return out
 
 
-def _gamma(fn: dict, plain: bool, stabilization: Baumgarte | None) -> Callable:
-    """``gamma(q, qd, p, A) = -Adot qd - 2 alpha A qd - beta^2 phi``."""
-    prefix = "plain_" if plain else ""
-    drift, residual = fn[prefix + "drift"], fn[prefix + "residual"]
+def _entry_functions(dyn) -> dict[str, Callable]:
+    """The lowered quantities the solve uses, as their nonzero entries of one state
+    (:meth:`jaxskid.Dynamics.entries`)."""
+    entries = dyn.entries
+    out = {key: entries(name) for key, name in zip(("jacobian", "drift", "residual"), CONSTRAINT_QUANTITIES)}
+    out["mass"] = entries("mass_matrix")
+    if "inverse_dynamics" in dyn.quantities:
+        rnea = entries("inverse_dynamics")
+        out["bias"] = lambda q, qd, p: rnea(q, qd, jnp.zeros_like(qd), p)
+    else:
+        cor, grav = entries("coriolis_torques"), entries("gravity_torques")
+
+        def bias(q, qd, p):
+            c, g = cor(q, qd, p), grav(q, p)
+            return {k: c[k] + g[k] if k in c and k in g else c.get(k, g.get(k)) for k in {*c, *g}}
+
+        out["bias"] = bias
+    return out
+
+
+def _right_sides(fn: dict, rows: int, stabilization: Baumgarte | None) -> Callable:
+    """``(r1, r2)`` of the KKT system as lists of scalars (``None``: zero): ``r1 = tau - h(q, qd)`` and
+    ``r2 = gamma = -Adot qd - 2 alpha A qd - beta^2 phi``, from the entries of ``A`` (``rows`` x nv)."""
+    alpha = stabilization.alpha if stabilization is not None else 0.0
+    beta = stabilization.beta if stabilization is not None else 0.0
+
+    def sides(q, qd, tau, p, a):
+        nv, bias, drift = qd.shape[-1], fn["bias"](q, qd, p), fn["drift"](q, qd, p)
+        residual = fn["residual"](q, p) if beta else {}
+        r1 = [tau[i] - bias[i] if i in bias else tau[i] for i in range(nv)]
+        r2 = []
+        for c in range(rows):
+            g = -drift[c] if c in drift else None
+            if alpha:
+                velocity = None
+                for i in range(nv):
+                    if c * nv + i in a:
+                        velocity = _plus(velocity, a[c * nv + i] * qd[i])
+                if velocity is not None:
+                    g = _minus(g, 2.0 * alpha * velocity)
+            if c in residual:
+                g = _minus(g, beta**2 * residual[c])
+            r2.append(g)
+        return r1, r2
+
+    return sides
+
+
+def _gamma(fn: dict, stabilization: Baumgarte | None) -> Callable:
+    """``gamma(q, qd, p, A) = -Adot qd - 2 alpha A qd - beta^2 phi`` as a vector (the tangent's residual)."""
+    drift, residual = fn["plain_drift"], fn["plain_residual"]
 
     def gamma(q, qd, p, a):
         out = -drift(q, qd, p)
@@ -142,16 +178,15 @@ def constrained(dyn, batched: bool = True, stabilization: Baumgarte | None = Non
     derivative rule (module docstring); ``batched`` as in :meth:`jaxskid.Dynamics.raw`."""
     require_constraints(dyn, "constrained dynamics")
     stabilization, eps = options(stabilization, regularization)
-    fn = _functions(dyn, batched)
-    gamma, plain_gamma = _gamma(fn, False, stabilization), _gamma(fn, True, stabilization)
+    fn, entry = _functions(dyn, batched), _entry_functions(dyn)
+    rows = dyn.signature("constraint_jacobian")[1][0]
+    sides, plain_gamma = _right_sides(entry, rows, stabilization), _gamma(fn, stabilization)
 
     @jax.custom_jvp
     def solve(q, qd, tau, p):
-        # each computed once: XLA on CPU would fuse them into each of their users (materialize), which made
-        # the Panda's program compile 2-3 times slower
-        a, m = materialize(fn["jacobian"](q, p)), materialize(fn["mass"](q, p))
-        r1, r2 = materialize(tau - fn["bias"](q, qd, p)), materialize(gamma(q, qd, p, a))
-        return kkt_solve(ldl_factor(m), a, r1, r2, eps)
+        a = entry["jacobian"](q, p)
+        x, lam = kkt(entry["mass"](q, p), a, *sides(q, qd, tau, p, a), eps)
+        return _assemble(x, qd.dtype), _assemble(lam, qd.dtype)
 
     @jax.checkpoint  # reverse mode keeps (q, qd, qdd, lambda, p), not the linearisation of the residuals
     def tangent(q, qd, qdd, lam, p, dq, dqd, dtau, dp):
@@ -160,7 +195,10 @@ def constrained(dyn, batched: bool = True, stabilization: Baumgarte | None = Non
             return fn["inverse"](q, qd, qdd, p) - lam @ a, a @ qdd + eps * lam - plain_gamma(q, qd, p, a)
 
         _, (d1, d2) = jax.jvp(residuals, (q, qd, p), (dq, dqd, dp))
-        return kkt_solve(ldl_factor(fn["mass"](q, p)), fn["jacobian"](q, p), dtau - d1, -d2, eps)
+        r1, r2 = dtau - d1, -d2
+        x, dlam = kkt(entry["mass"](q, p), entry["jacobian"](q, p), [r1[i] for i in range(r1.shape[-1])],
+                      [r2[c] for c in range(rows)], eps)
+        return _assemble(x, qd.dtype), _assemble(dlam, qd.dtype)
 
     @solve.defjvp
     def rule(primals, tangents):

@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ShapeError
+from .._errors import RequestError, ShapeError
 from ._base import QuantitySet, metadata_fields
 from ._ffi import library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
@@ -82,6 +82,11 @@ class Dynamics(QuantitySet):
         self._plain: dict[str, Callable] = {
             name: _traced_once(functools.partial(_plain, namespace["_" + name], same), name) for name in quantities
         }
+        entries = namespace["_entries"]
+        self._entries: dict[str, Callable] = {
+            name: _traced_once(functools.partial(_plain, namespace["_" + name], entries), name)
+            for name, m in quantities.items() if m["shape"]
+        }
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
         self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
@@ -141,6 +146,15 @@ class Dynamics(QuantitySet):
         if name not in self._raw:
             self.signature(name)  # the error that names the quantity and how to lower it
         return self._raw[name] if batched else self._plain[name]
+
+    def entries(self, name: str) -> Callable:
+        """The generated function of one state returning its structurally nonzero entries unassembled,
+        ``f(*state, p) -> {flat index: scalar}`` (row-major; absent: zero for every state and parameter):
+        the sparsity pattern is known when the caller is traced (:mod:`jaxskid.runtime._sparse`)."""
+        if name not in self._entries:
+            self.signature(name)
+            raise RequestError(f"{name} has a scalar value: it has no entries")
+        return self._entries[name]
 
     def _packed(self, params, where: str = "params"):
         """As :meth:`QuantitySet._packed`, and a dict's vector is kept on the device too: passed to a

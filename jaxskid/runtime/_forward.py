@@ -6,8 +6,11 @@ Forward dynamics solves the equations of motion for the accelerations,
 
 in closed form when the quantity ``forward_dynamics`` was lowered (:mod:`jaxskid.symbolic._forward`),
 otherwise with the bias ``C qd + Q_grav`` from one recursive Newton-Euler pass (``inverse_dynamics`` at
-``qdd = 0``, measured faster than ``coriolis_torques + gravity_torques``) and an unrolled square-root-free
-Cholesky factorisation ``M = L D L^T`` (Golub & Van Loan, "Matrix Computations", 4th ed., Alg. 4.1.2).
+``qdd = 0``, measured faster than ``coriolis_torques + gravity_torques``) and a square-root-free Cholesky
+factorisation of M written out on its nonzero entries, along the tree's sparsity
+(:func:`jaxskid.runtime._sparse.mass_solver`; float64, batch 4096, against the dense unrolled factorisation
+of the assembled M: Panda 0.29 against 0.85 us per state, solo12 with a floating base 1.7 against 6.0 us,
+the G1's 29 joints 3.5 against 31 us and 23 against 102 s to compile).
 """
 
 from __future__ import annotations
@@ -22,8 +25,9 @@ from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
 from ._jit import jit
 from ._implicit import differentiable
-from ._ldl import ldl_solve, materialize
+from ._ldl import materialize
 from ._parameters import param_array
+from ._sparse import mass_solver
 
 
 def require_solver(dyn, what: str) -> None:
@@ -59,7 +63,7 @@ def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Calla
     """The single-state function ``qdd(q, qd, tau, p, wrench=None)`` with ``p`` a parameter vector.
 
     With the quantity ``forward_dynamics`` lowered, this is the closed form (:mod:`jaxskid.symbolic._forward`);
-    otherwise M and the bias are evaluated and solved by :func:`ldl_solve`. ``batched``: whether the
+    otherwise M and the bias are evaluated and solved by :func:`~jaxskid.runtime._sparse.mass_solver`. ``batched``: whether the
     function will be mapped with ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`). ``autodiff``: how it is
     differentiated, ``"forward"`` (forward and reverse mode) or ``"reverse"`` (reverse mode only, faster);
     see :func:`jaxskid.runtime._implicit.differentiable`.
@@ -72,10 +76,10 @@ def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Calla
     if "forward_dynamics" in dyn.quantities:
         solve = raw("forward_dynamics")
     else:
-        mass, bias = raw("mass_matrix"), _bias(dyn, raw)
+        mass_solve, bias = mass_solver(dyn), _bias(dyn, raw)
 
         def solve(q, qd, tau, p):
-            return ldl_solve(mass(q, p), tau - bias(q, qd, p))
+            return mass_solve(q, p, tau - bias(q, qd, p))
 
     solve = differentiable(dyn, solve, batched, autodiff)
 

@@ -26,7 +26,8 @@ import jax
 
 from .._errors import RequestError
 from ._ffi import native_backward
-from ._ldl import ldl_solve, materialize
+from ._ldl import materialize
+from ._sparse import mass_solver
 
 AUTODIFF = ("forward", "reverse")
 """The ways :func:`differentiable` can differentiate forward dynamics."""
@@ -46,7 +47,7 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
     have = set(dyn.quantities)
     if "mass_matrix" not in have:
         return solve
-    mass = dyn.generated("mass_matrix", batched)
+    mass = mass_solver(dyn)
     if autodiff == "reverse" and "inverse_dynamics_vjp" in have:
         return _reverse(solve, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn)
     if "inverse_dynamics" in have:
@@ -62,7 +63,7 @@ def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
     @jax.checkpoint  # reverse mode keeps (q, qd, qdd, p), not the linearisation of inverse dynamics
     def tangent(q, qd, a, p, dq, dqd, dtau, dp):
         _, did = jax.jvp(lambda q, qd, p: inverse(q, qd, a, p), (q, qd, p), (dq, dqd, dp))
-        return ldl_solve(mass(q, p), dtau - did)
+        return mass(q, p, dtau - did)
 
     @fd.defjvp
     def rule(primals, tangents):
@@ -78,7 +79,7 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
 
     def kernel(q, qd, a, g, p):
         # computed once each: XLA on CPU would fuse them into each of their users (materialize)
-        lam = materialize(ldl_solve(mass(q, p), g))
+        lam = materialize(mass(q, p, g))
         return lam, materialize(-vjp(q, qd, a, lam, p))
 
     @jax.custom_vjp

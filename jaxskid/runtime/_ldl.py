@@ -15,12 +15,14 @@ from .._kernels import recip
 
 
 def _assemble(values: Sequence, dtype) -> jax.Array:
-    """A vector from scalars by a chain of ``where`` selects (the output form XLA fuses into one loop,
-    see :mod:`jaxskid.codegen._jax`); ``jnp.stack`` would split the computation into slow kernels."""
+    """A vector from scalars (``None``: zero) by a chain of ``where`` selects (the output form XLA fuses
+    into one loop, see :mod:`jaxskid.codegen._jax`); ``jnp.stack`` would split the computation into slow
+    kernels."""
     out = jnp.zeros((len(values),), dtype)
     index = jnp.arange(len(values))
     for k, v in enumerate(values):
-        out = jnp.where(index == k, v, out)
+        if v is not None:
+            out = jnp.where(index == k, v, out)
     return out
 
 
