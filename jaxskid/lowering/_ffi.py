@@ -90,10 +90,10 @@ _BACKWARD = r"""
 typedef double T __attribute__((vector_size(8 * LANES)));
 #define LANE(x, l) ((x)[l])
 #define TLIFT(e) ((T){0} + (e))
-static inline int same(T x) { for (int l = 1; l < W; l++) if (x[l] != x[0]) return 0; return 1; }
-/* lane-wise sin and cos; a single state fills every lane, and costs one call */
-static inline T Tsin(T x) { T r; if (same(x)) return TLIFT(sin(x[0])); for (int l = 0; l < W; l++) r[l] = sin(x[l]); return r; }
-static inline T Tcos(T x) { T r; if (same(x)) return TLIFT(cos(x[0])); for (int l = 0; l < W; l++) r[l] = cos(x[l]); return r; }
+typedef long long TI __attribute__((vector_size(8 * LANES)));
+@TRIG_T@
+static inline T Tsin(T x) { return Ttrig(x, 0); }
+static inline T Tcos(T x) { return Ttrig(x, 1); }
 static inline T positive_or_nan(T s) { for (int l = 0; l < W; l++) if (!(s[l] > 0)) s[l] = NAN; return s; }
 @LANE_FUNCTIONS@
 #define MASS @STEM@_mass_matrix_T
@@ -166,6 +166,47 @@ XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 }
 """
 
+_TRIG = r"""
+/* sin (quadrant 0) or cos (quadrant 1) of every lane: x = n pi/2 + r with |r| <= pi/4 (Cody & Waite's
+   three-part pi/2, exact products for |n| < 2^20), then the minimax polynomials of sin and cos on
+   [-pi/4, pi/4] (the coefficients of Moshier's Cephes library), chosen and signed by the quadrant.
+   Within 2 ulp of libm; lanes beyond 1e5 in magnitude, infinities and nan take libm's value. */
+static inline @V@ @V@trig(@V@ x, long long quadrant)
+{
+    const @V@ shifter = @V@LIFT(6755399441055744.0); /* 1.5 * 2^52: adding it rounds to an integer */
+    const @V@ n = (x * @V@LIFT(0.63661977236758134308) + shifter) - shifter;
+    @V@ r = x - n * @V@LIFT(1.57079632673412561417e+00);
+    r = r - n * @V@LIFT(6.07710050630396597660e-11);
+    r = r - n * @V@LIFT(2.02226624879595063154e-21);
+    const @V@ z = r * r;
+    @V@ ps = @V@LIFT(1.58962301576546568060e-10);
+    ps = ps * z + @V@LIFT(-2.50507477628578072866e-8);
+    ps = ps * z + @V@LIFT(2.75573136213857245213e-6);
+    ps = ps * z + @V@LIFT(-1.98412698295895385996e-4);
+    ps = ps * z + @V@LIFT(8.33333333332211858878e-3);
+    ps = ps * z + @V@LIFT(-1.66666666666666307295e-1);
+    const @V@ s = r + r * z * ps;
+    @V@ pc = @V@LIFT(-1.13585365213876817300e-11);
+    pc = pc * z + @V@LIFT(2.08757008419747316778e-9);
+    pc = pc * z + @V@LIFT(-2.75573141792967388112e-7);
+    pc = pc * z + @V@LIFT(2.48015872888517045348e-5);
+    pc = pc * z + @V@LIFT(-1.38888888888730564116e-3);
+    pc = pc * z + @V@LIFT(4.16666666666665929218e-2);
+    const @V@ c = @V@LIFT(1.0) - @V@LIFT(0.5) * z + z * z * pc;
+    const @V@I k = __builtin_convertvector(n, @V@I) + quadrant;
+    const @V@I odd = (k & 1) != 0, negative = (k & 2) != 0;
+    const @V@I sign = (@V@I){0} + (long long)(1ULL << 63);
+    @V@ out = (@V@)((((@V@I)c) & odd) | (((@V@I)s) & ~odd));
+    out = (@V@)(((@V@I)out) ^ (negative & sign));
+    for (int l = 0; l < (int)(sizeof(@V@) / sizeof(double)); l++)
+        if (!(x[l] > -1e5 && x[l] < 1e5)) out[l] = quadrant ? cos(x[l]) : sin(x[l]);
+    return out;
+}
+"""
+"""Lane-wise sine and cosine of a vector type ``@V@`` (with ``@V@LIFT`` and the integer vector ``@V@I``): the
+quantity kernels' (``V``) and the backward step's (``T``; with libm per lane it spent about a third of its
+time in ``sin`` and ``cos``)."""
+
 _GENERIC = r"""
 /* Quantity kernels: VW states at once in vectors of doubles (GCC and Clang vector extensions). */
 #define VW 4
@@ -173,41 +214,7 @@ typedef double V __attribute__((vector_size(8 * VW)));
 #define VLIFT(e) ((V){0} + (e))
 typedef long long VI __attribute__((vector_size(8 * VW)));
 
-/* sin (quadrant 0) or cos (quadrant 1) of every lane: x = n pi/2 + r with |r| <= pi/4 (Cody & Waite's
-   three-part pi/2, exact products for |n| < 2^20), then the minimax polynomials of sin and cos on
-   [-pi/4, pi/4] (the coefficients of Moshier's Cephes library), chosen and signed by the quadrant.
-   Within 2 ulp of libm; lanes beyond 1e5 in magnitude, infinities and nan take libm's value. */
-static inline V Vtrig(V x, long long quadrant)
-{
-    const V shifter = VLIFT(6755399441055744.0); /* 1.5 * 2^52: adding it rounds to an integer */
-    const V n = (x * VLIFT(0.63661977236758134308) + shifter) - shifter;
-    V r = x - n * VLIFT(1.57079632673412561417e+00);
-    r = r - n * VLIFT(6.07710050630396597660e-11);
-    r = r - n * VLIFT(2.02226624879595063154e-21);
-    const V z = r * r;
-    V ps = VLIFT(1.58962301576546568060e-10);
-    ps = ps * z + VLIFT(-2.50507477628578072866e-8);
-    ps = ps * z + VLIFT(2.75573136213857245213e-6);
-    ps = ps * z + VLIFT(-1.98412698295895385996e-4);
-    ps = ps * z + VLIFT(8.33333333332211858878e-3);
-    ps = ps * z + VLIFT(-1.66666666666666307295e-1);
-    const V s = r + r * z * ps;
-    V pc = VLIFT(-1.13585365213876817300e-11);
-    pc = pc * z + VLIFT(2.08757008419747316778e-9);
-    pc = pc * z + VLIFT(-2.75573141792967388112e-7);
-    pc = pc * z + VLIFT(2.48015872888517045348e-5);
-    pc = pc * z + VLIFT(-1.38888888888730564116e-3);
-    pc = pc * z + VLIFT(4.16666666666665929218e-2);
-    const V c = VLIFT(1.0) - VLIFT(0.5) * z + z * z * pc;
-    const VI k = __builtin_convertvector(n, VI) + quadrant;
-    const VI odd = (k & 1) != 0, negative = (k & 2) != 0;
-    const VI sign = {(long long)(1ULL << 63), (long long)(1ULL << 63), (long long)(1ULL << 63), (long long)(1ULL << 63)};
-    V out = (V)((((VI)c) & odd) | (((VI)s) & ~odd));
-    out = (V)(((VI)out) ^ (negative & sign));
-    for (int l = 0; l < VW; l++)
-        if (!(x[l] > -1e5 && x[l] < 1e5)) out[l] = quadrant ? cos(x[l]) : sin(x[l]);
-    return out;
-}
+@TRIG_V@
 static inline V Vsin(V x) { return Vtrig(x, 0); }
 static inline V Vcos(V x) { return Vtrig(x, 1); }
 
@@ -304,6 +311,9 @@ XLA_FFI_Error *jaxskid_@NAME@(XLA_FFI_CallFrame *call)
     return run(call, @N_IN@, size_@NAME@, core_@NAME@, @N_OUT@, @OUT_RANK@, call_@NAME@);
 }
 """
+
+_BACKWARD = _BACKWARD.replace("@TRIG_T@", _TRIG.replace("@V@", "T"))
+_GENERIC = _GENERIC.replace("@TRIG_V@", _TRIG.replace("@V@", "V"))
 
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
