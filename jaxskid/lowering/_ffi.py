@@ -42,6 +42,7 @@ _PRELUDE = r"""
 #include <stdint.h>
 #include <stddef.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/mman.h>
 #include "xla/ffi/api/c_api.h"
 #include "@STEM@.@INCLUDE@"  /* the scalar C where a kernel calls it (one translation unit), else its macros */
@@ -226,7 +227,7 @@ typedef void (*kernel)(const V *const *in, V *out);
    `n_out` entries; input i has `core[i]` trailing axes holding `size[i]` entries, and leading axes that
    broadcast against the result's batch axes (right-aligned; an axis of 1, or a missing one, is shared). */
 static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size, const int64_t *core,
-                          int64_t n_out, int64_t out_rank, kernel fn)
+                          int64_t n_out, int64_t out_rank, kernel fn, const int32_t *nz, int64_t n_nz)
 {
     if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != n_in
         || call->rets.size != 1)
@@ -254,6 +255,7 @@ static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size
     if (posix_memalign((void **)&buffer, sizeof(V), (size_t)(total > 0 ? total : 1) * sizeof(V)) != 0) return NULL;
     const V *x[MAX_IN];
     V *out = buffer;
+    memset(out, 0, (size_t)n_out * sizeof(V));  /* entries the kernel never writes are zero for every state */
     for (int i = 0, at = (int)n_out; i < n_in; at += (int)size[i], i++) x[i] = buffer + at;
     int shared[MAX_IN];  /* the same entries for every state (parameters, mostly): loaded once */
     for (int i = 0; i < n_in; i++) {
@@ -288,7 +290,18 @@ static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size
         }
         fn(x, out);
         const int m = batch - b < VW ? (int)(batch - b) : VW;
-        if (f64) {
+        if (nz) {  /* mostly zeros: zero the rows, then scatter the rest */
+            memset((char *)res->data + b * n_out * (f64 ? 8 : 4), 0, (size_t)m * (size_t)n_out * (f64 ? 8 : 4));
+            for (int l = 0; l < m; l++) {
+                if (f64) {
+                    double *r = (double *)res->data + (b + l) * n_out;
+                    for (int64_t j = 0; j < n_nz; j++) r[nz[j]] = out[nz[j]][l];
+                } else {
+                    float *r = (float *)res->data + (b + l) * n_out;
+                    for (int64_t j = 0; j < n_nz; j++) r[nz[j]] = (float)out[nz[j]][l];
+                }
+            }
+        } else if (f64) {
             double *r = (double *)res->data + b * n_out;
             for (int l = 0; l < m; l++)
                 for (int64_t k = 0; k < n_out; k++) r[l * n_out + k] = out[k][l];
@@ -306,9 +319,10 @@ static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size
 _QUANTITY = r"""
 static void call_@NAME@(const V *const *x, V *out) { @STEM@_@NAME@_V(@ARGS@, out); }
 static const int64_t size_@NAME@[] = {@SIZES@}, core_@NAME@[] = {@CORES@};
+@NONZERO@
 XLA_FFI_Error *jaxskid_@NAME@(XLA_FFI_CallFrame *call)
 {
-    return run(call, @N_IN@, size_@NAME@, core_@NAME@, @N_OUT@, @OUT_RANK@, call_@NAME@);
+    return run(call, @N_IN@, size_@NAME@, core_@NAME@, @N_OUT@, @OUT_RANK@, call_@NAME@, @NZ@, @N_NZ@);
 }
 """
 
@@ -425,6 +439,28 @@ def include_dir() -> str:
     return jax.ffi.include_dir()
 
 
+_ZERO_OUTPUT = re.compile(r"^\s*out\[(\d+)\] = VLIFT\([-+]?0*\.?0*(?:[eE][-+]?\d+)?\);\n", re.M)
+
+
+def _without_zeros(vector: str, name: str, n_out: int) -> tuple[str, str, str, str]:
+    """The vector kernel without its assignments of a literal zero (the handler zeroes those entries once
+    per call), and, when at least :data:`SCATTER` of the entries are zero, the C of the indices of the others:
+    ``(kernel, declaration, pointer, count)``. The handler then zeroes each result row and writes only those."""
+    zeros = {int(k) for k in _ZERO_OUTPUT.findall(vector)}
+    vector = _ZERO_OUTPUT.sub("", vector)
+    if len(zeros) < SCATTER * n_out:
+        return vector, "", "NULL", "0"
+    keep = [k for k in range(n_out) if k not in zeros]
+    values = ", ".join(map(str, keep)) or "0"
+    return vector, f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}", str(len(keep))
+
+
+SCATTER = 0.75
+"""The share of structurally zero entries above which a handler zeroes its result and writes only the nonzero
+entries. The G1's regressor (84 % zeros): 11.4-12.1 against 13.3-19.5 us per state, and 6 against 13 s cold;
+its Coriolis matrix (fewer zeros) ran 15 % slower that way than with one sequential copy of every entry."""
+
+
 def glue_source(native: Mapping) -> tuple[str, bool]:
     """The C of a library's handlers (it includes the generated ``<stem>.c``) and whether the backward
     kernel computes in vectors: the backward step when ``native["backward"]``, and a handler
@@ -442,7 +478,9 @@ def glue_source(native: Mapping) -> tuple[str, bool]:
         if vector is None:
             continue
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
-        quantities.append(vector + _QUANTITY.replace("@NAME@", name).replace("@ARGS@", args)
+        vector, nonzero, nz, n_nz = _without_zeros(vector, name, n_out)
+        quantities.append(vector + _QUANTITY.replace("@NONZERO@", nonzero).replace("@NZ@", nz).replace("@N_NZ@", n_nz)
+                          .replace("@NAME@", name).replace("@ARGS@", args)
                           .replace("@SIZES@", ", ".join(map(str, sizes))).replace("@CORES@", ", ".join(map(str, cores)))
                           .replace("@N_IN@", str(len(sizes))).replace("@N_OUT@", str(n_out))
                           .replace("@OUT_RANK@", str(out_rank)))
