@@ -255,7 +255,6 @@ static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size
     if (posix_memalign((void **)&buffer, sizeof(V), (size_t)(total > 0 ? total : 1) * sizeof(V)) != 0) return NULL;
     const V *x[MAX_IN];
     V *out = buffer;
-    memset(out, 0, (size_t)n_out * sizeof(V));  /* entries the kernel never writes are zero for every state */
     for (int i = 0, at = (int)n_out; i < n_in; at += (int)size[i], i++) x[i] = buffer + at;
     int shared[MAX_IN];  /* the same entries for every state (parameters, mostly): loaded once */
     for (int i = 0; i < n_in; i++) {
@@ -443,22 +442,23 @@ _ZERO_OUTPUT = re.compile(r"^\s*out\[(\d+)\] = VLIFT\([-+]?0*\.?0*(?:[eE][-+]?\d
 
 
 def _without_zeros(vector: str, name: str, n_out: int) -> tuple[str, str, str, str]:
-    """The vector kernel without its assignments of a literal zero (the handler zeroes those entries once
-    per call), and, when at least :data:`SCATTER` of the entries are zero, the C of the indices of the others:
-    ``(kernel, declaration, pointer, count)``. The handler then zeroes each result row and writes only those."""
+    """When at least :data:`SCATTER` of a kernel's entries are assigned a literal zero: the kernel without
+    those assignments and the C of the indices of the other entries, ``(kernel, declaration, pointer,
+    count)``; the handler then zeroes each result row and writes only those. Otherwise the kernel as it is."""
     zeros = {int(k) for k in _ZERO_OUTPUT.findall(vector)}
-    vector = _ZERO_OUTPUT.sub("", vector)
     if len(zeros) < SCATTER * n_out:
         return vector, "", "NULL", "0"
     keep = [k for k in range(n_out) if k not in zeros]
     values = ", ".join(map(str, keep)) or "0"
-    return vector, f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}", str(len(keep))
+    return (_ZERO_OUTPUT.sub("", vector), f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}",
+            str(len(keep)))
 
 
 SCATTER = 0.75
 """The share of structurally zero entries above which a handler zeroes its result and writes only the nonzero
-entries. The G1's regressor (84 % zeros): 11.4-12.1 against 13.3-19.5 us per state, and 6 against 13 s cold;
-its Coriolis matrix (fewer zeros) ran 15 % slower that way than with one sequential copy of every entry."""
+entries. The G1's regressor (84 % zeros): 11.4-13.5 against 13.3-26.8 us per state, and 6-9 against 11-14 s
+cold;
+its Coriolis matrix (69 % zeros) ran 15 % slower that way than with one sequential copy of every entry."""
 
 
 def glue_source(native: Mapping) -> tuple[str, bool]:
