@@ -457,8 +457,7 @@ def _without_zeros(vector: str, name: str, n_out: int) -> tuple[str, str, str, s
 SCATTER = 0.75
 """The share of structurally zero entries above which a handler zeroes its result and writes only the nonzero
 entries. The G1's regressor (84 % zeros): 11.4-13.5 against 13.3-26.8 us per state, and 6-9 against 11-14 s
-cold;
-its Coriolis matrix (69 % zeros) ran 15 % slower that way than with one sequential copy of every entry."""
+cold; its Coriolis matrix (69 % zeros) ran 15 % slower that way than with one sequential copy of every entry."""
 
 
 def glue_source(native: Mapping) -> tuple[str, bool]:

@@ -40,9 +40,9 @@ from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
 from ._forward import _bias
 from ._jit import jit
-from ._ldl import _assemble, materialize
+from ._ldl import assemble, materialize
 from ._parameters import param_array
-from ._sparse import _minus, _plus, kkt
+from ._sparse import kkt, minus, plus
 
 CONSTRAINT_QUANTITIES = ("constraint_jacobian", "constraint_drift", "constraint_residual")
 """The quantities of a robot's constraints (:meth:`jaxskid.Robot.with_constraints`)."""
@@ -92,20 +92,19 @@ def options(stabilization, regularization) -> tuple[Baumgarte | None, float]:
     return stabilization, float(regularization)
 
 
-def _functions(dyn, batched: bool) -> dict[str, Callable]:
-    """The lowered functions constrained dynamics uses, of one state: ``batched`` for the solve, plain for
-    the forward-mode passes of the derivative (see :meth:`jaxskid.Dynamics.raw`)."""
-    def raw(name: str, b: bool = batched) -> Callable:
-        return dyn.generated(name, b)
+def _functions(dyn) -> dict[str, Callable]:
+    """The lowered functions of one state, unbroadcast (see :meth:`jaxskid.Dynamics.raw`), for the
+    forward-mode passes of the derivative and for closed-chain inverse dynamics: the constraint quantities
+    and ``inverse(q, qd, qdd, p)``."""
+    def raw(name: str) -> Callable:
+        return dyn.generated(name, False)
 
-    out = {"mass": raw("mass_matrix"), "bias": _bias(dyn, raw), "plain_bias": _bias(dyn, partial(raw, b=False))}
-    for key, name in zip(("jacobian", "drift", "residual"), CONSTRAINT_QUANTITIES):
-        out[key], out["plain_" + key] = raw(name), raw(name, False)
-    plain_mass = raw("mass_matrix", False)
+    out = {key: raw(name) for key, name in zip(("jacobian", "drift", "residual"), CONSTRAINT_QUANTITIES)}
     if "inverse_dynamics" in dyn.quantities:
-        out["inverse"] = raw("inverse_dynamics", False)
+        out["inverse"] = raw("inverse_dynamics")
     else:
-        out["inverse"] = lambda q, qd, qdd, p: plain_mass(q, p) @ qdd + out["plain_bias"](q, qd, p)
+        mass, bias = raw("mass_matrix"), _bias(dyn, raw)
+        out["inverse"] = lambda q, qd, qdd, p: mass(q, p) @ qdd + bias(q, qd, p)
     return out
 
 
@@ -123,7 +122,7 @@ def _entry_functions(dyn) -> dict[str, Callable]:
 
         def bias(q, qd, p):
             c, g = cor(q, qd, p), grav(q, p)
-            return {k: c[k] + g[k] if k in c and k in g else c.get(k, g.get(k)) for k in {*c, *g}}
+            return {k: plus(c.get(k), g[k]) if k in g else c[k] for k in {*c, *g}}
 
         out["bias"] = bias
     return out
@@ -146,11 +145,11 @@ def _right_sides(fn: dict, rows: int, stabilization: Baumgarte | None) -> Callab
                 velocity = None
                 for i in range(nv):
                     if c * nv + i in a:
-                        velocity = _plus(velocity, a[c * nv + i] * qd[i])
+                        velocity = plus(velocity, a[c * nv + i] * qd[i])
                 if velocity is not None:
-                    g = _minus(g, 2.0 * alpha * velocity)
+                    g = minus(g, 2.0 * alpha * velocity)
             if c in residual:
-                g = _minus(g, beta**2 * residual[c])
+                g = minus(g, beta**2 * residual[c])
             r2.append(g)
         return r1, r2
 
@@ -159,7 +158,7 @@ def _right_sides(fn: dict, rows: int, stabilization: Baumgarte | None) -> Callab
 
 def _gamma(fn: dict, stabilization: Baumgarte | None) -> Callable:
     """``gamma(q, qd, p, A) = -Adot qd - 2 alpha A qd - beta^2 phi`` as a vector (the tangent's residual)."""
-    drift, residual = fn["plain_drift"], fn["plain_residual"]
+    drift, residual = fn["drift"], fn["residual"]
 
     def gamma(q, qd, p, a):
         out = -drift(q, qd, p)
@@ -172,13 +171,13 @@ def _gamma(fn: dict, stabilization: Baumgarte | None) -> Callable:
     return gamma
 
 
-def constrained(dyn, batched: bool = True, stabilization: Baumgarte | None = None,
-                regularization: float = 0.0) -> Callable:
+def constrained(dyn, stabilization: Baumgarte | None = None, regularization: float = 0.0) -> Callable:
     """The single-state function ``(qdd, lambda) = f(q, qd, tau, p)`` with ``p`` a parameter vector and its
-    derivative rule (module docstring); ``batched`` as in :meth:`jaxskid.Dynamics.raw`."""
+    derivative rule (module docstring). It works on the quantities' entries, one scalar at a time, so the
+    same function serves a single state and ``jax.vmap``."""
     require_constraints(dyn, "constrained dynamics")
     stabilization, eps = options(stabilization, regularization)
-    fn, entry = _functions(dyn, batched), _entry_functions(dyn)
+    fn, entry = _functions(dyn), _entry_functions(dyn)
     rows = dyn.signature("constraint_jacobian")[1][0]
     sides, plain_gamma = _right_sides(entry, rows, stabilization), _gamma(fn, stabilization)
 
@@ -186,19 +185,19 @@ def constrained(dyn, batched: bool = True, stabilization: Baumgarte | None = Non
     def solve(q, qd, tau, p):
         a = entry["jacobian"](q, p)
         x, lam = kkt(entry["mass"](q, p), a, *sides(q, qd, tau, p, a), eps)
-        return _assemble(x, qd.dtype), _assemble(lam, qd.dtype)
+        return assemble(x, qd.dtype), assemble(lam, qd.dtype)
 
     @jax.checkpoint  # reverse mode keeps (q, qd, qdd, lambda, p), not the linearisation of the residuals
     def tangent(q, qd, qdd, lam, p, dq, dqd, dtau, dp):
         def residuals(q, qd, p):
-            a = fn["plain_jacobian"](q, p)
+            a = fn["jacobian"](q, p)
             return fn["inverse"](q, qd, qdd, p) - lam @ a, a @ qdd + eps * lam - plain_gamma(q, qd, p, a)
 
         _, (d1, d2) = jax.jvp(residuals, (q, qd, p), (dq, dqd, dp))
         r1, r2 = dtau - d1, -d2
         x, dlam = kkt(entry["mass"](q, p), entry["jacobian"](q, p), [r1[i] for i in range(r1.shape[-1])],
                       [r2[c] for c in range(rows)], eps)
-        return _assemble(x, qd.dtype), _assemble(dlam, qd.dtype)
+        return assemble(x, qd.dtype), assemble(dlam, qd.dtype)
 
     @solve.defjvp
     def rule(primals, tangents):
@@ -213,7 +212,7 @@ def constrained_accelerations(dyn, batched: bool = True, stabilization: Baumgart
                               regularization: float = 0.0) -> Callable:
     """``qdd(q, qd, tau, p, wrench=None)`` of the constrained robot: the form of
     :func:`jaxskid.runtime._forward.accelerations` that rollouts use (the multipliers dropped)."""
-    solve = constrained(dyn, batched, stabilization, regularization)
+    solve = constrained(dyn, stabilization, regularization)
 
     def qdd(q, qd, tau, p, wrench=None):
         if wrench is not None:
@@ -235,7 +234,7 @@ def _forward(dyn, q, qd, tau, params, stabilization, regularization):
     (q, qd, tau), dtype = float_arrays((q, qd, tau))
     p = param_array(dyn.layout, params, dtype)
     batch = _state_batch(dyn, "constrained_forward_dynamics", [("q", q), ("qd", qd), ("tau", tau)], p)
-    solve = constrained(dyn, bool(batch), stabilization, regularization)
+    solve = constrained(dyn, stabilization, regularization)
 
     def joined(q, qd, tau, p):
         return jnp.concatenate(solve(q, qd, tau, p))
@@ -293,7 +292,7 @@ def _inverse(dyn, q, qd, qdd, params, columns):
     (q, qd, qdd), dtype = float_arrays((q, qd, qdd))
     p = param_array(dyn.layout, params, dtype)
     batch = _state_batch(dyn, "constrained_inverse_dynamics", [("q", q), ("qd", qd), ("qdd", qdd)], p)
-    fn = _functions(dyn, bool(batch))
+    fn = _functions(dyn)
     nv = qd.shape[-1]
 
     def one(q, qd, qdd, p):

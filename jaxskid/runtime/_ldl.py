@@ -14,7 +14,7 @@ import jax.numpy as jnp
 from .._kernels import recip
 
 
-def _assemble(values: Sequence, dtype) -> jax.Array:
+def assemble(values: Sequence, dtype) -> jax.Array:
     """A vector from scalars (``None``: zero) by a chain of ``where`` selects (the output form XLA fuses
     into one loop, see :mod:`jaxskid.codegen._jax`); ``jnp.stack`` would split the computation into slow
     kernels."""
@@ -78,7 +78,7 @@ def ldl_substitute(factor: tuple[list, list], b: jax.Array) -> jax.Array:
         for k in range(i + 1, n):
             s = s - lo[k][i] * x[k]
         x[i] = s
-    return _assemble(x, b.dtype)
+    return assemble(x, b.dtype)
 
 
 def materialize(x: jax.Array) -> jax.Array:

@@ -24,18 +24,19 @@ import jax
 import jax.numpy as jnp
 
 from .._kernels import recip
-from ._ldl import _assemble
+from ._ldl import assemble
 
 Entries = Mapping[int, jax.Array]
 """A matrix's structurally nonzero entries of one state: flat index ``i * columns + j`` -> scalar."""
 
 
-def _minus(s, t):
+def minus(s, t):
     """``s - t`` where ``None`` is a structural zero."""
     return -t if s is None else s - t
 
 
-def _plus(s, t):
+def plus(s, t):
+    """``s + t`` where ``None`` (``s`` only) is a structural zero."""
     return t if s is None else s + t
 
 
@@ -61,7 +62,7 @@ def factor(m: Entries, n: int, order: Sequence[int] | None = None) -> Factor:
     for j in range(n):
         s = entry.get((j, j))
         for k in rows[j]:
-            s = _minus(s, lo[j, k] * lo[j, k] * d[k])
+            s = minus(s, lo[j, k] * lo[j, k] * d[k])
         s = jnp.zeros(()) if s is None else s
         d[j], dinv[j] = s, jnp.where(s > 0, recip(s), jnp.nan)
         below = {i for i in range(j + 1, n) if (i, j) in entry or (j, i) in entry}
@@ -70,7 +71,7 @@ def factor(m: Entries, n: int, order: Sequence[int] | None = None) -> Factor:
             s = entry.get((i, j), entry.get((j, i)))
             for k in rows[j]:
                 if (i, k) in lo:
-                    s = _minus(s, lo[i, k] * lo[j, k] * d[k])
+                    s = minus(s, lo[i, k] * lo[j, k] * d[k])
             lo[i, j] = s * dinv[j]
             rows[i].append(j)
             cols[j].append(i)
@@ -85,7 +86,7 @@ def lower(f: Factor, b: Mapping[int, jax.Array]) -> dict[int, jax.Array]:
         s = b.get(i)
         for k in f.rows[i]:
             if k in y:
-                s = _minus(s, f.lo[i, k] * y[k])
+                s = minus(s, f.lo[i, k] * y[k])
         if s is not None:
             y[i] = s
     return y
@@ -100,7 +101,7 @@ def upper(f: Factor, w: Mapping[int, jax.Array]) -> list:
         s = w[i] * f.dinv[i] if i in w else None
         for k in f.cols[i]:
             if x[k] is not None:
-                s = _minus(s, f.lo[k, i] * x[k])
+                s = minus(s, f.lo[k, i] * x[k])
         x[i] = s
     out = [None] * n
     for i, value in enumerate(x):
@@ -138,13 +139,13 @@ def kkt(m: Entries, a: Entries, r1: Sequence, r2: Sequence, eps: float = 0.0) ->
             total = eps if c == e and eps else None
             for i, v in dy[c].items():
                 if i in y[e]:
-                    total = _plus(total, v * y[e][i])
+                    total = plus(total, v * y[e][i])
             if total is not None:
                 s[c * m_rows + e] = s[e * m_rows + c] = total
         t = r2[c]
         for i, v in dy[c].items():
             if i in z:
-                t = _minus(t, v * z[i])
+                t = minus(t, v * z[i])
         rhs.append(t)
     if any(c * m_rows + c not in s for c in range(m_rows)):  # a row of A that is zero for every state
         nan = jnp.nan * f.dinv[0]
@@ -154,7 +155,7 @@ def kkt(m: Entries, a: Entries, r1: Sequence, r2: Sequence, eps: float = 0.0) ->
     for c, col in enumerate(y):
         if lam[c] is not None:
             for i, v in col.items():
-                w[i] = _plus(w.get(i), v * lam[c])
+                w[i] = plus(w.get(i), v * lam[c])
     return upper(f, w), lam
 
 
@@ -165,6 +166,6 @@ def mass_solver(dyn) -> Callable:
 
     def mass_solve(q, p, b):
         n = b.shape[-1]
-        return _assemble(solve(factor(entries(q, p), n), [b[i] for i in range(n)]), b.dtype)
+        return assemble(solve(factor(entries(q, p), n), [b[i] for i in range(n)]), b.dtype)
 
     return mass_solve
