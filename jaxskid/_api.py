@@ -102,7 +102,7 @@ def lower(
     found = read_entry(path, key) if path is not None else None
     if found is None:
         eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
-        native = native_sources(eqs, names)
+        native = native_sources(eqs, names, jax_names)  # kernels shared with the JAX module
         if native is not None and cache and native_enabled():
             # the C compiler works on the native kernels while the JAX module is printed
             ffi_library_soon(native, Path(cache_dir or default_cache_dir()) / "native")

@@ -164,3 +164,51 @@ def test_g1_29dof_against_pinocchio():
         np.testing.assert_allclose(c[k], pin.computeCoriolisMatrix(model, data, q[k], qd[k]), rtol=0, atol=1e-9)
         np.testing.assert_allclose(y[k], pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k]),
                                    rtol=0, atol=1e-9)
+
+
+def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
+    """A kernel long enough to be split into pieces compiles as one translation unit per core
+    (``jaxskid.lowering._ffi_build.split``): forced here on the Panda (pieces of 40 statements, two parts),
+    the split library gives the JAX form's values, for a quantity kernel and for the backward step."""
+    from jaxskid.lowering import _ffi, _ffi_build
+    from jaxskid.runtime._forward import accelerations
+
+    monkeypatch.setattr(_ffi, "LONG", 60)
+    monkeypatch.setattr(_ffi, "CHUNK", 40)
+    monkeypatch.setattr(_ffi_build, "_cores", lambda: 2)
+    units = []
+    compile_all = _ffi_build._compile_all
+    monkeypatch.setattr(_ffi_build, "_compile_all", lambda commands, tmp: (units.append(len(commands)),
+                                                                         compile_all(commands, tmp)))
+    robot = jaxskid.read_urdf(PANDA, lock=FINGERS)
+    dyn = jaxskid.lower(robot, quantities=["coriolis_matrix", "forward_dynamics"], cache_dir=tmp_path)
+    p = dyn.param_vector()
+    q, qd, tau = _states(dyn.n_dof, (9,), seed=4)
+    got = dyn.coriolis_matrix(q, qd)
+    assert units == [2]
+    ref = jax.vmap(_pure(dyn, "coriolis_matrix"), in_axes=(0, 0, None))(q, qd, p)
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-13 * float(jnp.abs(ref).max()))
+
+    def loss(p, autodiff):
+        fd = jax.vmap(accelerations(dyn, autodiff=autodiff), in_axes=(0, 0, 0, None))
+        return jnp.sum(jnp.sin(fd(q, qd, tau, p)))
+
+    native = jax.grad(loss)(p, "reverse")  # the backward kernel of the split library
+    np.testing.assert_allclose(native, jax.grad(loss)(p, "forward"), rtol=1e-9, atol=1e-12)
+
+
+def test_split_glue_defines_each_piece_once():
+    """Each piece is defined in exactly one part, declared in the others, and only part 0 has handlers."""
+    from jaxskid.lowering._ffi_build import split
+
+    glue = ("static __attribute__((noinline)) void f_0(const V *q, V *w)\n{\n    w[0] = q[0];\n}\n"
+            "static __attribute__((noinline)) void f_1(const V *q, V *w)\n{\n    w[1] = q[1];\n}\n"
+            "static __attribute__((noinline)) void f_2(const V *q, V *w)\n{\n    w[2] = q[2] + q[0];\n}\n"
+            "XLA_FFI_Error *jaxskid_f(XLA_FFI_CallFrame *call)\n{\n    return NULL;\n}\n")
+    text, parts = split(glue, 2)
+    assert parts == 2
+    assert split(glue, 1) == (glue, 1)
+    for name in ("f_0", "f_1", "f_2"):
+        assert text.count(f"PIECE void {name}(const V *q, V *w)\n{{") == 1
+        assert text.count(f"PIECE void {name}(const V *q, V *w);") == 1
+    assert "#if JAXSKID_PART == 0\nXLA_FFI_Error *jaxskid_f" in text

@@ -130,16 +130,19 @@ def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2)
 
 
-def native_sources(eqs, names: Sequence[str]) -> dict | None:
+def native_sources(eqs, names: Sequence[str], naming=None) -> dict | None:
     """The C of the native kernels of ``names``, ``{"stem", "header", "source", "backward", "kernels"}``:
     the backward step of forward dynamics when ``names`` hold :data:`FFI_QUANTITIES` (``backward``), and the
     :func:`native_quantities`, each as ``(name, input sizes, input core ranks, output size, output rank)``
-    with the parameters last; None when there are none."""
+    with the parameters last; None when there are none. ``naming``: the symbols' renaming
+    (:class:`~jaxskid.codegen._common.Layout`); the JAX module's (:func:`jaxskid.codegen._jax.jax_names`)
+    lets both share their kernels, and the C then sums and multiplies in the JAX form's order."""
     backward = set(FFI_QUANTITIES) <= set(names)
     kernels = native_quantities(eqs, names)
     if not (backward or kernels):
         return None
-    layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])))
+    chosen = tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels]))
+    layout = Layout(eqs, chosen) if naming is None else Layout(eqs, chosen, naming)
     files = emit_c(layout)
     table = []
     for name in kernels:

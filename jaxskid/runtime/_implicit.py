@@ -15,7 +15,9 @@ reverse sweep, :mod:`jaxskid.symbolic._adjoint`):
 
 Without these rules JAX differentiates the closed form itself, a program many times longer whose
 transpose XLA compiles for minutes into slow code. Each rule saves only ``(q, qd, qdd, p)`` for the
-backward pass and recomputes M there, so a rollout's memory per step is a few state vectors.
+backward pass and recomputes M there, so a rollout's memory per step is a few state vectors. The forward
+dynamics inside a rule is one primitive (:mod:`jaxskid.runtime._whole`), so that the partial evaluation of
+a rollout's loop does not split it.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from .._errors import RequestError
 from ._ffi import native_backward
 from ._ldl import materialize
 from ._sparse import mass_solver
+from ._whole import whole
 
 AUTODIFF = ("forward", "reverse")
 """The ways :func:`differentiable` can differentiate forward dynamics."""
@@ -56,9 +59,11 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
 
 
 def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
+    kept = whole(solve, like=1)  # not split by the partial evaluation of a loop around it (runtime._whole)
+
     @jax.custom_jvp
     def fd(q, qd, tau, p):
-        return solve(q, qd, tau, p)
+        return kept(q, qd, tau, p)
 
     @jax.checkpoint  # reverse mode keeps (q, qd, qdd, p), not the linearisation of inverse dynamics
     def tangent(q, qd, a, p, dq, dqd, dtau, dp):
@@ -68,7 +73,7 @@ def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
     @fd.defjvp
     def rule(primals, tangents):
         q, qd, tau, p = primals
-        a = fd(q, qd, tau, p)
+        a = kept(q, qd, tau, p)
         return a, tangent(q, qd, a, p, *tangents)
 
     return fd
@@ -82,12 +87,14 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
         lam = materialize(mass(q, p, g))
         return lam, materialize(-vjp(q, qd, a, lam, p))
 
+    kept = whole(solve, like=1)  # not split by the partial evaluation of a loop around it (runtime._whole)
+
     @jax.custom_vjp
     def fd(q, qd, tau, p):
-        return solve(q, qd, tau, p)
+        return kept(q, qd, tau, p)
 
     def fwd(q, qd, tau, p):
-        a = solve(q, qd, tau, p)
+        a = kept(q, qd, tau, p)
         return a, (q, qd, a, p)
 
     def bwd(res, g):

@@ -81,10 +81,17 @@ def ldl_substitute(factor: tuple[list, list], b: jax.Array) -> jax.Array:
     return assemble(x, b.dtype)
 
 
+@jax.custom_jvp
 def materialize(x: jax.Array) -> jax.Array:
     """``x``, computed once. XLA on CPU fuses a producer made of cheap operations into every consumer
     fusion, so chaining accelerations (the stages of RK4) recomputed each stage inside the next one's
     kernels: 0.46 us per evaluation alone, 1.4 us per evaluation in a chain of four (3-DOF arm, batch
     1024). A dot is never fused on CPU and ``optimization_barrier`` is dropped by the compiler, so
-    ``x @ I`` (n^2 multiply-adds) materialises ``x``."""
+    ``x @ I`` (n^2 multiply-adds) materialises ``x``. Its derivative is the identity, not a second dot
+    (nor a third, its transpose, in reverse mode)."""
     return x @ jnp.eye(x.shape[-1], dtype=x.dtype)
+
+
+@materialize.defjvp
+def _materialize_jvp(primals, tangents):
+    return materialize(primals[0]), tangents[0]
