@@ -185,7 +185,7 @@ def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
     p = dyn.param_vector()
     q, qd, tau = _states(dyn.n_dof, (9,), seed=4)
     got = dyn.coriolis_matrix(q, qd)
-    assert units == [2]
+    assert units == [2, 1]  # two translation units, then the link
     ref = jax.vmap(_pure(dyn, "coriolis_matrix"), in_axes=(0, 0, None))(q, qd, p)
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-13 * float(jnp.abs(ref).max()))
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import concurrent.futures
 import os
 import re
+import shutil
 import subprocess
 import threading
 from collections.abc import Mapping
@@ -77,19 +78,24 @@ def _build(final: Path, stem: str, header: str, source: str, glue: str, command:
         (tmp / "glue.c").write_text(glue)
         out, glue_file = tmp / final.name, str(tmp / "glue.c")
         if parts == 1:
-            _compile([*command, "-shared", "-I", str(tmp), "-o", str(out), glue_file, "-lm"], tmp)
+            _compile_all([[*command, "-shared", "-I", str(tmp), "-o", str(out), glue_file, "-lm"]], tmp)
         else:
             objects = [str(tmp / f"part{k}.o") for k in range(parts)]
             _compile_all([[*command, f"-DJAXSKID_PART={k}", "-I", str(tmp), "-c", "-o", obj, glue_file]
                           for k, obj in enumerate(objects)], tmp)
-            _compile([*command, "-shared", "-o", str(out), *objects, "-lm"], tmp)
+            _compile_all([[*command, "-shared", "-o", str(out), *objects, "-lm"]], tmp)
         _install(tmp, out, final)
     return final
 
 
 def _compile_all(commands: list[list[str]], tmp: Path) -> None:
-    """Run the compiler commands at once; on a failure, as :func:`._native._compile` does."""
-    procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for cmd in commands]
+    """Run the compiler commands at once, at a lower priority (``nice``) where the system has it: a build
+    started in the background then leaves the cores to the caller's own work (printing the JAX module,
+    XLA's compile of forward dynamics) and takes them when the caller waits for it. On a failure, as
+    :func:`._native._compile` does."""
+    nice = ("nice", "-n", "10") if shutil.which("nice") else ()
+    procs = [subprocess.Popen([*nice, *cmd], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for cmd in commands]
     failed = [cmd for cmd, proc in zip(commands, procs) if proc.wait() != 0]
     if failed:
         _compile(failed[0], tmp)  # again, to raise BuildError with the compiler's output
