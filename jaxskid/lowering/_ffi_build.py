@@ -9,7 +9,6 @@ from __future__ import annotations
 import concurrent.futures
 import os
 import re
-import shutil
 import subprocess
 import threading
 from collections.abc import Mapping
@@ -89,13 +88,8 @@ def _build(final: Path, stem: str, header: str, source: str, glue: str, command:
 
 
 def _compile_all(commands: list[list[str]], tmp: Path) -> None:
-    """Run the compiler commands at once, at a lower priority (``nice``) where the system has it: a build
-    started in the background then leaves the cores to the caller's own work (printing the JAX module,
-    XLA's compile of forward dynamics) and takes them when the caller waits for it. On a failure, as
-    :func:`._native._compile` does."""
-    nice = ("nice", "-n", "10") if shutil.which("nice") else ()
-    procs = [subprocess.Popen([*nice, *cmd], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-             for cmd in commands]
+    """Run the compiler commands at once; on a failure, as :func:`._native._compile` does."""
+    procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for cmd in commands]
     failed = [cmd for cmd, proc in zip(commands, procs) if proc.wait() != 0]
     if failed:
         _compile(failed[0], tmp)  # again, to raise BuildError with the compiler's output
