@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
-from ._common import Kernel, Layout, NumberTweaks, comment, double, shape_str, statements
+from ._common import Kernel, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 
 
 class CPrinter(NumberTweaks, C99CodePrinter):
@@ -130,7 +130,7 @@ def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2)
 
 
-def native_sources(eqs, names: Sequence[str], naming=None) -> dict | None:
+def native_sources(eqs, names: Sequence[str], naming=portable_names) -> dict | None:
     """The C of the native kernels of ``names``, ``{"stem", "header", "source", "backward", "kernels"}``:
     the backward step of forward dynamics when ``names`` hold :data:`FFI_QUANTITIES` (``backward``), and the
     :func:`native_quantities`, each as ``(name, input sizes, input core ranks, output size, output rank)``
@@ -142,7 +142,7 @@ def native_sources(eqs, names: Sequence[str], naming=None) -> dict | None:
     if not (backward or kernels):
         return None
     chosen = tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels]))
-    layout = Layout(eqs, chosen) if naming is None else Layout(eqs, chosen, naming)
+    layout = Layout(eqs, chosen, naming)
     files = emit_c(layout)
     table = []
     for name in kernels:

@@ -51,19 +51,18 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
     if "mass_matrix" not in have:
         return solve
     mass = mass_solver(dyn)
+    kept = whole(solve, like=1)  # a rule's solve, not split by the partial evaluation of a loop around it
     if autodiff == "reverse" and "inverse_dynamics_vjp" in have:
-        return _reverse(solve, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn)
+        return _reverse(kept, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn)
     if "inverse_dynamics" in have:
-        return _forward(solve, mass, dyn.generated("inverse_dynamics", False))
+        return _forward(kept, mass, dyn.generated("inverse_dynamics", False))
     return solve
 
 
 def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
-    kept = whole(solve, like=1)  # not split by the partial evaluation of a loop around it (runtime._whole)
-
     @jax.custom_jvp
     def fd(q, qd, tau, p):
-        return kept(q, qd, tau, p)
+        return solve(q, qd, tau, p)
 
     @jax.checkpoint  # reverse mode keeps (q, qd, qdd, p), not the linearisation of inverse dynamics
     def tangent(q, qd, a, p, dq, dqd, dtau, dp):
@@ -73,7 +72,7 @@ def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
     @fd.defjvp
     def rule(primals, tangents):
         q, qd, tau, p = primals
-        a = kept(q, qd, tau, p)
+        a = solve(q, qd, tau, p)
         return a, tangent(q, qd, a, p, *tangents)
 
     return fd
@@ -87,14 +86,12 @@ def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
         lam = materialize(mass(q, p, g))
         return lam, materialize(-vjp(q, qd, a, lam, p))
 
-    kept = whole(solve, like=1)  # not split by the partial evaluation of a loop around it (runtime._whole)
-
     @jax.custom_vjp
     def fd(q, qd, tau, p):
-        return kept(q, qd, tau, p)
+        return solve(q, qd, tau, p)
 
     def fwd(q, qd, tau, p):
-        a = kept(q, qd, tau, p)
+        a = solve(q, qd, tau, p)
         return a, (q, qd, a, p)
 
     def bwd(res, g):
