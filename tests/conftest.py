@@ -19,8 +19,14 @@ from helpers import FD, ROBOTS_DIR  # noqa: E402  (after tests/ is on sys.path)
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
-    """Generated modules go to a fresh cache directory, so tests never depend on ~/.cache."""
-    path = tmp_path_factory.mktemp("jaxskid-cache")
+    """Generated modules go to a fresh cache directory, so tests never depend on ~/.cache. The workers of
+    one ``pytest -n`` run share it (entries and libraries are written atomically), so a robot's module is
+    derived, and its programs compiled, once per run rather than once per worker."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        path = tmp_path_factory.getbasetemp().parent / "jaxskid-cache"  # the run's folder, shared by its workers
+        path.mkdir(exist_ok=True)
+    else:
+        path = tmp_path_factory.mktemp("jaxskid-cache")
     old = os.environ.get("JAXSKID_CACHE_DIR")
     os.environ["JAXSKID_CACHE_DIR"] = str(path)
     yield path

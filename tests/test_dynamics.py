@@ -145,6 +145,7 @@ def test_grad_wrt_inertial_parameters_matches_finite_differences(panda_tau):
 
     grad = jax.grad(loss)(params)
     assert all(np.isfinite(float(v)) for v in grad.values())
+    loss = jax.jit(loss)  # the differences: one compiled program, called twice per parameter
     for name in dyn.parameters:
         h = 1e-6 * max(1.0, abs(float(params[name])))
         up = dict(params, **{name: params[name] + h})

@@ -19,6 +19,7 @@ import pytest
 from helpers import load
 
 import jaxskid
+from jaxskid.lowering._ffi_batch import BACKWARD_CHUNK
 from jaxskid.runtime._ffi import native_backward
 from jaxskid.runtime._ldl import ldl_solve
 from jaxskid.testing._recursive import recursive_dynamics
@@ -48,7 +49,7 @@ def _states(n, batch, seed=0):
 def test_the_kernel_matches_the_jax_kernels_and_a_dense_solve(case):
     robot, dyn, kernel, pure = case
     p = dyn.param_vector()
-    q, qd, a, g = _states(dyn.n_dof, (5,))
+    q, qd, a, g = _states(dyn.n_dof, (2 * BACKWARD_CHUNK + 5,))  # chunks shared by XLA's threads
     lam, v = jax.jit(jax.vmap(kernel, (0, 0, 0, 0, None)))(q, qd, a, g, p)
     lam_ref, v_ref = jax.vmap(pure, (0, 0, 0, 0, None))(q, qd, a, g, p)
     np.testing.assert_allclose(lam, lam_ref, rtol=1e-11, atol=1e-11 * float(jnp.abs(lam_ref).max()))
@@ -62,8 +63,9 @@ def test_the_kernel_matches_the_jax_kernels_and_a_dense_solve(case):
 def test_per_state_parameters_single_states_and_float32(case):
     _, dyn, kernel, pure = case
     p = dyn.param_vector()
-    ps = p[None, :] * jnp.linspace(0.5, 1.5, 3)[:, None]  # one parameter vector per state
-    q, qd, a, g = _states(dyn.n_dof, (3,), seed=1)
+    count = BACKWARD_CHUNK + 3
+    ps = p[None, :] * jnp.linspace(0.5, 1.5, count)[:, None]  # one parameter vector per state
+    q, qd, a, g = _states(dyn.n_dof, (count,), seed=1)
     got = jax.jit(jax.vmap(kernel))(q, qd, a, g, ps)
     ref = jax.vmap(pure)(q, qd, a, g, ps)
     for x, r in zip(got, ref):

@@ -18,6 +18,7 @@ import pytest
 from helpers import ERD, FINGERS, PANDA, pinocchio_urdf_model
 
 import jaxskid
+from jaxskid.lowering._ffi_batch import CHUNK
 from jaxskid.runtime._ffi import native_quantity
 
 MATRICES = ["mass_matrix", "coriolis_matrix", "regressor", "mass_matrix_dot", "system_jacobian",
@@ -101,6 +102,25 @@ def test_user_vmaps_nested_and_partly_batched(panda):
     got = jax.jit(jax.vmap(lambda qq: dyn.coriolis_matrix(qq, qd[0])))(q)  # a batch inside a batch: (3, 4, n, n)
     ref = jax.vmap(lambda qq: jax.vmap(pure, (0, 0, None))(qq, qd[0], p))(q)
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_batches_of_several_chunks_shared_by_the_pool(panda):
+    """Batches longer than one chunk (jaxskid.lowering._ffi_batch) are split among XLA's threads: every state,
+    the last partial chunk and the last partial group of lanes included, equals the JAX form; with
+    parameters shared and per state, and with two batch axes."""
+    robot, dyn = panda
+    count = 3 * CHUNK + 7
+    q, qd = _states(dyn.n_dof, (count,), count=2, seed=11)
+    p = dyn.param_vector()
+    pure = jax.vmap(_pure(dyn, "coriolis_matrix"), (0, 0, 0))
+    scale = jnp.linspace(0.5, 2.0, count)[:, None]
+    per_state = p[None, :] * scale
+    np.testing.assert_allclose(dyn.coriolis_matrix(q, qd), pure(q, qd, jnp.broadcast_to(p, (count, len(p)))),
+                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(dyn.coriolis_matrix(q, qd, per_state), pure(q, qd, per_state), rtol=1e-12, atol=1e-12)
+    grid = jax.jit(jax.vmap(jax.vmap(dyn.mass_matrix, (0, None)), (None, 0)))(q, per_state[:5])  # (5, count, n, n)
+    ref = jax.vmap(lambda pp: jax.vmap(_pure(dyn, "mass_matrix"), (0, None))(q, pp))(per_state[:5])
+    np.testing.assert_allclose(grid, ref, rtol=1e-12, atol=1e-12)
 
 
 def test_gradients_match_central_differences(panda):

@@ -26,6 +26,7 @@ import re
 from collections.abc import Mapping
 from pathlib import Path
 
+from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._native import CFLAGS
 
 FFI_CFLAGS = ("-fno-math-errno",)
@@ -85,6 +86,7 @@ static int metadata(XLA_FFI_CallFrame *call)
 _BACKWARD = r"""
 #define NV @STEM_UPPER@_INVERSE_DYNAMICS_VJP_SIZE
 #define NO (N + NV)
+#define BACKWARD_CHUNK @BACKWARD_CHUNK@
 
 #ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), the functions rewritten below */
 #define W LANES
@@ -138,31 +140,47 @@ static void backward(const T *q, const T *qd, const T *a, const T *g, const T *p
     for (int i = N; i < NO; i++) out[i] = -out[i];
 }
 
+typedef struct {
+    const XLA_FFI_Buffer *in[5];
+    XLA_FFI_Buffer *res;
+    int64_t stride[5], batch;
+} backward_job;
+
+static const int64_t backward_size[5] = {NQ, N, N, N, NP};
+
+/* States [c BACKWARD_CHUNK, (c + 1) BACKWARD_CHUNK) of the batch. */
+static void backward_chunk(void *ctx, int64_t c, int slot)
+{
+    (void)slot;
+    const backward_job *j = (const backward_job *)ctx;
+    const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
+    T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
+    T *w[5] = {q, qd, a, g, p};
+    for (int64_t b = from; b < to; b += W) {
+        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
+            const int64_t s = b + l < to ? b + l : to - 1;
+            for (int i = 0; i < 5; i++)
+                for (int64_t k = 0; k < backward_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
+        }
+        backward(q, qd, a, g, p, out);
+        for (int l = 0; l < W && b + l < to; l++)
+            for (int k = 0; k < NO; k++) store(j->res, (b + l) * NO + k, LANE(out[k], l));
+    }
+}
+
 XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 {
     if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
         return NULL;
-    static const int64_t size[5] = {NQ, N, N, N, NP};
-    const XLA_FFI_Buffer *in[5];
-    int64_t stride[5];
+    backward_job j;
     for (int i = 0; i < 5; i++) {
-        in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        stride[i] = numel(in[i]) == size[i] ? 0 : size[i];  /* one state's size: shared by the batch */
+        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
+        j.stride[i] = numel(j.in[i]) == backward_size[i] ? 0 : backward_size[i];  /* one state's: shared by the batch */
     }
-    XLA_FFI_Buffer *res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    const int64_t batch = numel(res) / NO;
-    T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
-    T *w[5] = {q, qd, a, g, p};
-    for (int64_t b = 0; b < batch; b += W) {
-        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
-            const int64_t s = b + l < batch ? b + l : batch - 1;
-            for (int i = 0; i < 5; i++)
-                for (int64_t k = 0; k < size[i]; k++) LANE(w[i][k], l) = load(in[i], s * stride[i] + k);
-        }
-        backward(q, qd, a, g, p, out);
-        for (int l = 0; l < W && b + l < batch; l++)
-            for (int k = 0; k < NO; k++) store(res, (b + l) * NO + k, LANE(out[k], l));
-    }
+    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
+    j.batch = numel(j.res) / NO;
+    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
+    parallel_for(call, pool_threads(call, chunks), chunks, backward_chunk, &j);
     return NULL;
 }
 """
@@ -208,125 +226,8 @@ static inline @V@ @V@trig(@V@ x, long long quadrant)
 quantity kernels' (``V``) and the backward step's (``T``; with libm per lane it spent about a third of its
 time in ``sin`` and ``cos``)."""
 
-_GENERIC = r"""
-/* Quantity kernels: VW states at once in vectors of doubles (GCC and Clang vector extensions). */
-#define VW 4
-typedef double V __attribute__((vector_size(8 * VW)));
-#define VLIFT(e) ((V){0} + (e))
-typedef long long VI __attribute__((vector_size(8 * VW)));
-
-@TRIG_V@
-static inline V Vsin(V x) { return Vtrig(x, 0); }
-static inline V Vcos(V x) { return Vtrig(x, 1); }
-
-typedef void (*kernel)(const V *const *in, V *out);
-#define MAX_IN 8
-#define MAX_RANK 16
-
-/* Run `fn` over a batch. The result's leading axes are the batch and its last `out_rank` axes one state's
-   `n_out` entries; input i has `core[i]` trailing axes holding `size[i]` entries, and leading axes that
-   broadcast against the result's batch axes (right-aligned; an axis of 1, or a missing one, is shared). */
-static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size, const int64_t *core,
-                          int64_t n_out, int64_t out_rank, kernel fn, const int32_t *nz, int64_t n_nz)
-{
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != n_in
-        || call->rets.size != 1)
-        return NULL;
-    XLA_FFI_Buffer *res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    const int64_t nb = res->rank - out_rank;
-    if (nb < 0 || nb > MAX_RANK) return NULL;
-    int64_t batch = 1, total = n_out;
-    for (int64_t d = 0; d < nb; d++) batch *= res->dims[d];
-    const XLA_FFI_Buffer *in[MAX_IN];
-    int64_t stride[MAX_IN][MAX_RANK];  /* entries between consecutive indices along each batch axis */
-    for (int i = 0; i < n_in; i++) {
-        in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        const int64_t ib = in[i]->rank - core[i];
-        int64_t step = size[i];
-        for (int64_t d = nb - 1; d >= 0; d--) {
-            const int64_t id = d - (nb - ib);
-            const int64_t extent = id >= 0 ? in[i]->dims[id] : 1;
-            stride[i][d] = extent == 1 ? 0 : step;
-            step *= extent;
-        }
-        total += size[i];
-    }
-    V *buffer = NULL;
-    if (posix_memalign((void **)&buffer, sizeof(V), (size_t)(total > 0 ? total : 1) * sizeof(V)) != 0) return NULL;
-    const V *x[MAX_IN];
-    V *out = buffer;
-    for (int i = 0, at = (int)n_out; i < n_in; at += (int)size[i], i++) x[i] = buffer + at;
-    int shared[MAX_IN];  /* the same entries for every state (parameters, mostly): loaded once */
-    for (int i = 0; i < n_in; i++) {
-        shared[i] = 1;
-        for (int64_t d = 0; d < nb; d++) shared[i] &= stride[i][d] == 0;
-        if (shared[i]) {
-            V *xi = (V *)x[i];
-            for (int64_t k = 0; k < size[i]; k++) xi[k] = VLIFT(load(in[i], k));
-        }
-    }
-    const int f64 = res->dtype == XLA_FFI_DataType_F64;
-#ifdef MADV_HUGEPAGE
-    {   /* a large result fills fresh pages: ask for 2 MB ones (512 times fewer page faults) */
-        const uintptr_t start = (uintptr_t)res->data, end = start + (uintptr_t)(batch * n_out * (f64 ? 8 : 4));
-        const uintptr_t lo = (start + (1u << 21) - 1) & ~(uintptr_t)((1u << 21) - 1), hi = end & ~(uintptr_t)((1u << 21) - 1);
-        if (hi > lo) madvise((void *)lo, hi - lo, MADV_HUGEPAGE);
-    }
-#endif
-    for (int64_t b = 0; b < batch; b += VW) {
-        for (int l = 0; l < VW; l++) {  /* a last partial group repeats its last state */
-            int64_t s = b + l < batch ? b + l : batch - 1, off[MAX_IN] = {0};
-            for (int64_t d = nb - 1; d >= 0; d--) {
-                const int64_t k = s % res->dims[d];
-                s /= res->dims[d];
-                for (int i = 0; i < n_in; i++) off[i] += k * stride[i][d];
-            }
-            for (int i = 0; i < n_in; i++) {
-                if (shared[i]) continue;
-                V *xi = (V *)x[i];
-                for (int64_t k = 0; k < size[i]; k++) xi[k][l] = load(in[i], off[i] + k);
-            }
-        }
-        fn(x, out);
-        const int m = batch - b < VW ? (int)(batch - b) : VW;
-        if (nz) {  /* mostly zeros: zero the rows, then scatter the rest */
-            memset((char *)res->data + b * n_out * (f64 ? 8 : 4), 0, (size_t)m * (size_t)n_out * (f64 ? 8 : 4));
-            for (int l = 0; l < m; l++) {
-                if (f64) {
-                    double *r = (double *)res->data + (b + l) * n_out;
-                    for (int64_t j = 0; j < n_nz; j++) r[nz[j]] = out[nz[j]][l];
-                } else {
-                    float *r = (float *)res->data + (b + l) * n_out;
-                    for (int64_t j = 0; j < n_nz; j++) r[nz[j]] = (float)out[nz[j]][l];
-                }
-            }
-        } else if (f64) {
-            double *r = (double *)res->data + b * n_out;
-            for (int l = 0; l < m; l++)
-                for (int64_t k = 0; k < n_out; k++) r[l * n_out + k] = out[k][l];
-        } else {
-            float *r = (float *)res->data + b * n_out;
-            for (int l = 0; l < m; l++)
-                for (int64_t k = 0; k < n_out; k++) r[l * n_out + k] = (float)out[k][l];
-        }
-    }
-    free(buffer);
-    return NULL;
-}
-"""
-
-_QUANTITY = r"""
-static void call_@NAME@(const V *const *x, V *out) { @STEM@_@NAME@_V(@ARGS@, out); }
-static const int64_t size_@NAME@[] = {@SIZES@}, core_@NAME@[] = {@CORES@};
-@NONZERO@
-XLA_FFI_Error *jaxskid_@NAME@(XLA_FFI_CallFrame *call)
-{
-    return run(call, @N_IN@, size_@NAME@, core_@NAME@, @N_OUT@, @OUT_RANK@, call_@NAME@, @NZ@, @N_NZ@);
-}
-"""
-
-_BACKWARD = _BACKWARD.replace("@TRIG_T@", _TRIG.replace("@V@", "T"))
-_GENERIC = _GENERIC.replace("@TRIG_V@", _TRIG.replace("@V@", "V"))
+_BACKWARD = _BACKWARD.replace("@TRIG_T@", _TRIG.replace("@V@", "T")).replace("@BACKWARD_CHUNK@", str(BACKWARD_CHUNK))
+_GENERIC = GENERIC.replace("@TRIG_V@", _TRIG.replace("@V@", "V"))
 
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
@@ -466,7 +367,7 @@ def glue_source(native: Mapping) -> tuple[str, bool]:
     ``jaxskid_<name>`` per entry of ``native["kernels"]`` whose C has a vector form (the others are left
     out; the JAX function serves them)."""
     stem = native["stem"]
-    parts = [_PRELUDE]
+    parts = [_PRELUDE, POOL]
     lanes = None
     if native.get("backward"):
         lanes = lane_functions(native["source"], stem, ("mass_matrix", "inverse_dynamics_vjp"))
@@ -478,7 +379,7 @@ def glue_source(native: Mapping) -> tuple[str, bool]:
             continue
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
         vector, nonzero, nz, n_nz = _without_zeros(vector, name, n_out)
-        quantities.append(vector + _QUANTITY.replace("@NONZERO@", nonzero).replace("@NZ@", nz).replace("@N_NZ@", n_nz)
+        quantities.append(vector + QUANTITY.replace("@NONZERO@", nonzero).replace("@NZ@", nz).replace("@N_NZ@", n_nz)
                           .replace("@NAME@", name).replace("@ARGS@", args)
                           .replace("@SIZES@", ", ".join(map(str, sizes))).replace("@CORES@", ", ".join(map(str, cores)))
                           .replace("@N_IN@", str(len(sizes))).replace("@N_OUT@", str(n_out))
