@@ -195,18 +195,21 @@ def test_matches_pinocchio(name):
 
 
 @pytest.mark.slow
-def test_g1_matches_pinocchio():
-    """The G1 humanoid (29 joints): tau, M, and forward dynamics solved on M's sparsity from them (against
-    aba); prints the derive and lower time."""
-    r = robot("g1")
+@pytest.mark.parametrize("name", ["g1", "go2"])
+def test_humanoid_and_quadruped_match_pinocchio(name):
+    """The G1 humanoid (29 joints): tau and M; the go2 (12 joints) also forward dynamics solved on M's
+    sparsity from them (against aba; the same solve on the G1 takes over a minute to compile); prints the
+    derive and lower time."""
+    r = robot(name)
     names = ["inverse_dynamics", "mass_matrix"]
     t0 = time.perf_counter()
     dyn = jaxskid.lower(r, names, cache=False)
     s = random_states(r, 2, seed=2)
     got = {name: np.asarray(getattr(dyn, name)(*(s[a][0] for a in dyn.signature(name)[0]))) for name in names}
-    print(f"G1 floating base: derive, lower and first call of tau and M {time.perf_counter() - t0:.1f} s")
-    got["forward_dynamics"] = np.asarray(dyn.forward_dynamics(s["q"][0], s["qd"][0], s["tau"][0]))
-    ref = pinocchio_reference("g1", s["q"][0], s["qd"][0], s["qdd"][0], s["tau"][0])
+    print(f"{r.name} floating base: derive, lower and first call of tau and M {time.perf_counter() - t0:.1f} s")
+    if name == "go2":
+        got["forward_dynamics"] = np.asarray(dyn.forward_dynamics(s["q"][0], s["qd"][0], s["tau"][0]))
+    ref = pinocchio_reference(name, s["q"][0], s["qd"][0], s["qdd"][0], s["tau"][0])
     for name in got:
         assert rel_err(got[name], ref[name]) < TOL, name
 

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import ERD, FINGERS, PANDA, pinocchio_urdf_model
+from helpers import ERD, FINGERS, PANDA, ROBOTS_DIR, pinocchio_urdf_model
 
 import jaxskid
 from jaxskid.lowering._ffi_batch import CHUNK
@@ -35,6 +35,14 @@ def _states(n, batch, count=3, seed=0):
 def panda():
     robot = jaxskid.read_urdf(PANDA, lock=FINGERS)
     return robot, jaxskid.lower(robot, quantities=MATRICES)
+
+
+@pytest.fixture(scope="module")
+def arm():
+    """The 3-DOF arm of robots/, its M and C: the checks that compile the JAX form's derivatives or map it
+    several times, which do not depend on the robot's size."""
+    robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
+    return robot, jaxskid.lower(robot, quantities=["mass_matrix", "coriolis_matrix"])
 
 
 def _pure(dyn, name):
@@ -91,8 +99,9 @@ def test_against_pinocchio_with_per_state_parameters(panda):
                                atol=1e-12)
 
 
-def test_user_vmaps_nested_and_partly_batched(panda):
-    robot, dyn = panda
+def test_user_vmaps_nested_and_partly_batched(arm):
+    robot, dyn = arm
+    assert dyn.native_target("coriolis_matrix") is not None
     q, qd = _states(dyn.n_dof, (3, 4), count=2, seed=5)
     p = dyn.param_vector()
     pure = _pure(dyn, "coriolis_matrix")
@@ -123,8 +132,9 @@ def test_batches_of_several_chunks_shared_by_the_pool(panda):
     np.testing.assert_allclose(grid, ref, rtol=1e-12, atol=1e-12)
 
 
-def test_gradients_match_central_differences(panda):
-    robot, dyn = panda
+def test_gradients_match_central_differences(arm):
+    robot, dyn = arm
+    assert dyn.native_target("coriolis_matrix") is not None
     q, qd = (x[0] for x in _states(dyn.n_dof, (1,), count=2, seed=9))
     p = dyn.param_vector()
     w = jnp.asarray(np.random.default_rng(2).normal(size=(dyn.n_dof, dyn.n_dof)))
@@ -188,19 +198,19 @@ def test_g1_29dof_against_pinocchio():
 
 def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
     """A kernel long enough to be split into pieces compiles as one translation unit per core
-    (``jaxskid.lowering._ffi_build.split``): forced here on the Panda (pieces of 40 statements, two parts),
+    (``jaxskid.lowering._ffi_build.split``): forced here on the 3-DOF arm (pieces of 20 statements, two parts),
     the split library gives the JAX form's values, for a quantity kernel and for the backward step."""
     from jaxskid.lowering import _ffi, _ffi_build
     from jaxskid.runtime._forward import accelerations
 
-    monkeypatch.setattr(_ffi, "LONG", 60)
-    monkeypatch.setattr(_ffi, "CHUNK", 40)
+    monkeypatch.setattr(_ffi, "LONG", 30)
+    monkeypatch.setattr(_ffi, "CHUNK", 20)
     monkeypatch.setattr(_ffi_build, "_cores", lambda: 2)
     units = []
     compile_all = _ffi_build._compile_all
     monkeypatch.setattr(_ffi_build, "_compile_all", lambda commands, tmp: (units.append(len(commands)),
                                                                          compile_all(commands, tmp)))
-    robot = jaxskid.read_urdf(PANDA, lock=FINGERS)
+    robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
     dyn = jaxskid.lower(robot, quantities=["coriolis_matrix", "forward_dynamics"], cache_dir=tmp_path)
     p = dyn.param_vector()
     q, qd, tau = _states(dyn.n_dof, (9,), seed=4)
