@@ -16,9 +16,10 @@ import hashlib
 import logging
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+
+from .._files import write_atomic
 
 log = logging.getLogger("jaxskid")
 
@@ -90,21 +91,6 @@ def read_entry(path: Path, key: str) -> tuple[dict, str] | None:
         return None
     log.debug("jaxskid: loaded %s from the cache", path)
     return namespace, entry
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` so that a reader never sees a partial file: concurrent writers of the
-    same entry each leave a whole file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def store_entry(path: Path | None, module: str, key: str) -> tuple[dict, str]:

@@ -22,7 +22,10 @@ a rollout's loop does not split it.
 
 from __future__ import annotations
 
+import functools
+import hashlib
 from collections.abc import Callable
+from pathlib import Path
 
 import jax
 
@@ -51,12 +54,30 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
     if "mass_matrix" not in have:
         return solve
     mass = mass_solver(dyn)
-    kept = whole(solve, like=1)  # a rule's solve, not split by the partial evaluation of a loop around it
+    # a rule's solve, not split by the partial evaluation of a loop around it; its lowered forms are kept
+    # beside the cached module, so that a new process reads them instead of tracing the closed form
+    store = None
+    if getattr(dyn, "path", None) is not None:
+        route = "closed form" if "forward_dynamics" in have else "mass solve"
+        key = (Path(dyn.path).stem, _runtime_version(), "forward_dynamics", route, str(batched))
+        store = (Path(dyn.path).parent / "exports", key)
+    kept = whole(solve, like=1, store=store)
     if autodiff == "reverse" and "inverse_dynamics_vjp" in have:
         return _reverse(kept, mass, dyn.generated("inverse_dynamics_vjp", batched), dyn)
     if "inverse_dynamics" in have:
         return _forward(kept, mass, dyn.generated("inverse_dynamics", False))
     return solve
+
+
+@functools.lru_cache(maxsize=1)
+def _runtime_version() -> str:
+    """A hash of the code that builds a solve around the generated module (this package and the shared
+    kernels): a stored export of it holds that code's operations, so a changed runtime makes new ones."""
+    root = Path(__file__).parent
+    digest = hashlib.sha256()
+    for path in sorted([*root.glob("*.py"), root.parent / "_kernels.py"]):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
