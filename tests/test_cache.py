@@ -163,3 +163,23 @@ def test_classic_emitters_flag_at_import():
     env["XLA_FLAGS"] = "--xla_cpu_use_fusion_emitters=true"
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
     assert out.stdout.split() == ["--xla_cpu_use_fusion_emitters=true"], out.stderr[-1000:]
+
+
+def test_no_classic_emitters_switch_where_xla_lacks_it(monkeypatch):
+    """jaxlib 0.11's XLA has no switch to the classic CPU emitters and aborts the process at an unknown flag
+    in XLA_FLAGS: there jaxskid adds no flag and passes no compiler option."""
+    import os
+
+    import jaxlib.version
+
+    from jaxskid.runtime import _jit
+
+    monkeypatch.setattr(jaxlib.version, "__version__", "0.11.2")
+    monkeypatch.delenv("XLA_FLAGS", raising=False)
+    assert not _jit.classic_emitters_switch()
+    assert _jit.compiler_options() == {}
+    monkeypatch.setattr("jax._src.xla_bridge.backends_are_initialized", lambda: False)
+    assert _jit.prefer_classic_emitters() is False
+    assert "XLA_FLAGS" not in os.environ
+    monkeypatch.setattr(jaxlib.version, "__version__", "0.10.2")
+    assert _jit.classic_emitters_switch() and _jit.compiler_options() == {"xla_cpu_use_fusion_emitters": False}

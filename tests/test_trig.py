@@ -78,3 +78,18 @@ def test_source_defines_what_the_module_exports():
     np.testing.assert_array_equal(np.asarray(ns["_recip"](x)), np.asarray(_kernels.recip(x)))
     ref = 1.0 / np.asarray(x)
     assert np.all(np.abs(np.asarray(_kernels.recip(x)) - ref) <= np.spacing(ref))  # within one ulp
+
+
+def test_off_cpu_programs_use_xla_sine_and_cosine(monkeypatch):
+    """On a GPU the multiply-adds were the slower choice, so a program lowered for another platform than the
+    CPU calls XLA's own sine and cosine; one lowered for the CPU keeps the multiply-adds. Checked on the
+    exported StableHLO of each platform, as a machine whose default backend is a GPU lowers it."""
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    spec = jax.ShapeDtypeStruct((4,), jnp.float64)
+    for fn, op in ((_kernels.sin, "stablehlo.sine"), (_kernels.cos, "stablehlo.cosine")):
+        for platform, xla in (("cuda", True), ("cpu", False)):
+            text = jax.export.export(jax.jit(jax.vmap(fn)), platforms=[platform])(spec).mlir_module()
+            assert (op in text) is xla, (fn, platform)
+            assert ("stablehlo.round" in text) is not xla, (fn, platform)  # the argument reduction by pi/2
+        grad = jax.export.export(jax.jit(jax.vmap(jax.grad(fn))), platforms=["cuda"])(spec).mlir_module()
+        assert "stablehlo.round" not in grad

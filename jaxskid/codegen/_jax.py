@@ -39,7 +39,7 @@ from .._kernels import SOURCE as KERNELS_SOURCE
 from ..equations._derive import Equations
 from ._common import Kernel, Layout, NumberTweaks, statements, unravel
 
-GENERATOR_VERSION = "10"
+GENERATOR_VERSION = "11"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 

@@ -7,7 +7,8 @@ which :func:`jaxskid.lower` supplies).
 (``lax.platform_dependent``), with that function's derivatives (``jax.custom_jvp``), so ``jax.grad`` and
 gradients of gradients still work. They map over batches with the batch inside the kernel.
 
-``JAXSKID_NATIVE=0`` in the environment turns it off; without a C compiler it is off, with one warning.
+``JAXSKID_NATIVE=0`` in the environment turns it off; without a C compiler it is off, with one warning; where
+JAX's default backend is not the CPU, nothing is built.
 """
 
 from __future__ import annotations
@@ -28,8 +29,12 @@ _WARNED: set[str] = set()
 
 
 def enabled() -> bool:
-    """Whether native kernels may be used (``JAXSKID_NATIVE`` is not ``0``/``false``/``off``)."""
-    return os.environ.get("JAXSKID_NATIVE", "1").strip().lower() not in ("0", "false", "off", "no")
+    """Whether native kernels may be used: ``JAXSKID_NATIVE`` is not ``0``/``false``/``off``, and JAX's
+    default backend is the CPU. Where it is a GPU or TPU, programs run there and no C is built for them (a
+    computation placed on the CPU by hand then runs the JAX form)."""
+    if os.environ.get("JAXSKID_NATIVE", "1").strip().lower() in ("0", "false", "off", "no"):
+        return False
+    return jax.default_backend() == "cpu"
 
 
 def target(path: str | None, handler: str) -> str | None:

@@ -13,6 +13,20 @@ from collections.abc import Callable
 import jax
 
 CLASSIC_EMITTERS_FLAG = "--xla_cpu_use_fusion_emitters=false"
+LAST_WITH_CLASSIC_EMITTERS = (0, 10)  # jaxlib 0.11's XLA no longer knows the switch
+
+
+def classic_emitters_switch() -> bool:
+    """Whether this jaxlib's XLA has the switch to its classic CPU emitters. It is gone from jaxlib 0.11,
+    whose XLA aborts the process at an unknown flag in ``XLA_FLAGS`` and refuses an unknown compiler
+    option, so neither is given there."""
+    try:
+        import jaxlib.version
+
+        release = tuple(int(part) for part in jaxlib.version.__version__.split(".")[:2])
+    except (ImportError, AttributeError, ValueError):
+        return False
+    return release <= LAST_WITH_CLASSIC_EMITTERS
 
 
 def compiler_options() -> dict:
@@ -20,9 +34,12 @@ def compiler_options() -> dict:
 
     On CPU, XLA's newer fusion emitters compile the long straight-line programs of jaxskid slowly and
     into slow code (the second time derivative of tau on the Panda: 1.45 ms against 270 ns per state;
-    the Coriolis matrix: 747 us against 15 us), so the classic emitters are used there.
+    the Coriolis matrix: 747 us against 15 us), so the classic emitters are used there, where this XLA
+    still has them (:func:`classic_emitters_switch`).
     """
-    return {"xla_cpu_use_fusion_emitters": False} if jax.default_backend() == "cpu" else {}
+    if jax.default_backend() == "cpu" and classic_emitters_switch():
+        return {"xla_cpu_use_fusion_emitters": False}
+    return {}
 
 
 def prefer_classic_emitters() -> bool:
@@ -33,10 +50,11 @@ def prefer_classic_emitters() -> bool:
     Called when jaxskid is imported. It adds :data:`CLASSIC_EMITTERS_FLAG` to ``XLA_FLAGS`` only while
     JAX's backends have not started (XLA reads the variable once, when they do) and only if ``XLA_FLAGS``
     says nothing of the fusion emitters: ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` keeps XLA's
-    default. Returns whether the flag is in effect from this call.
+    default. Nothing is added where XLA has no such switch (:func:`classic_emitters_switch`). Returns
+    whether the flag is in effect from this call.
     """
     flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_use_fusion_emitters" in flags:
+    if "xla_cpu_use_fusion_emitters" in flags or not classic_emitters_switch():
         return False
     try:
         from jax._src import xla_bridge
