@@ -1,52 +1,140 @@
-"""jaxskid: closed-form rigid-body equations of motion, derived in SymPy and lowered to JAX."""
+"""jaxskid: closed-form rigid-body equations of motion, derived in SymPy and lowered to JAX.
+
+Every public name is imported on its first use (PEP 562), so ``import jaxskid`` and the command line's
+help cost a few milliseconds and a script pays for SymPy, JAX and the applications only when it uses them.
+"""
+
+from __future__ import annotations
+
+import importlib
 
 from ._errors import (
     DescriptionWarning, IdentificationError, IdentificationWarning, JaxskidError, ModelError, RequestError, ShapeError,
 )
-from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia
-from .model._drive import Drive
-from .model._robot import Frame, Joint, JointLimits, Mimic, Robot, spatial_to_body, symbol
-from .model._constraint import FrameContact, LoopClosure, PointContact
-from .model._standard import params_from_standard, standard_parameter_names, standard_params
-from .equations import DEFAULT_QUANTITIES, QUANTITIES, Equations, Options, derive
-from .lowering._cache import cache_dir
-from .runtime._dynamics import Dynamics
-from .runtime._jit import compiler_options, jit, prefer_classic_emitters
-from .lowering._xla_cache import compilation_cache
-from ._api import compile_native, load, lower
-from .lowering._native import BuildError
-from .runtime._native import NativeDynamics
-from . import codegen
-from .description._urdf import read_urdf
-from .runtime._forward import forward_dynamics, mass_matrix_condition
-from .runtime._constrained import Baumgarte, constrained_forward_dynamics, constrained_inverse_dynamics
-from .apps._field import Controller, vector_field
-from .apps._integrators import RK4, SemiImplicitEuler
-from .apps._saving import Checkpoint, SaveAt
-from .apps._simulate import Trajectory, rollout
-from .apps._field import HeldInput
-from .apps._motor import DCMotors
-from .apps._identification import (
-    Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky,
-    PhysicallyConsistent, Standard, WeightedLeastSquares, base_parameters, fit, identify, physically_consistent,
-    quantity_loss, trajectory_loss,
-)
-from .apps._energy_id import EnergyBalance, energy_balance, momentum_balance
-from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
-from .apps._contact import GroundContact
-from .apps._excitation import ExcitationResult, FourierTrajectory, design_excitation
-from .apps._parameterizations import nearest_consistent
-from .apps._signals import estimate_derivatives, lowpass, parallel_filter, quantize
-from .apps._validation import Validation, plot_validation, validate
-from .description._yaml_schema import DescriptionExtras, parse_description, read_description, read_extras
-from .description._yaml_writer import robot_to_dict, write_description
-from .description._dh import DH, dh_robot
-from .description._urdf_writer import write_urdf
-from .description._report import describe, draw_tree
-
 from ._version import __version__
+from ._xla_flags import prefer_classic_emitters
 
 prefer_classic_emitters()
+
+_LAZY = {  # public name -> the module that defines it
+    "pose": ".model._lie",
+    "pose_xyzrpy": ".model._lie",
+    "rot_axis_angle": ".model._lie",
+    "rot_quaternion": ".model._lie",
+    "rot_rpy": ".model._lie",
+    "screw": ".model._lie",
+    "spatial_inertia": ".model._lie",
+    "Drive": ".model._drive",
+    "Frame": ".model._robot",
+    "Joint": ".model._robot",
+    "JointLimits": ".model._robot",
+    "Mimic": ".model._robot",
+    "Robot": ".model._robot",
+    "spatial_to_body": ".model._robot",
+    "symbol": ".model._robot",
+    "FrameContact": ".model._constraint",
+    "LoopClosure": ".model._constraint",
+    "PointContact": ".model._constraint",
+    "params_from_standard": ".model._standard",
+    "standard_parameter_names": ".model._standard",
+    "standard_params": ".model._standard",
+    "DEFAULT_QUANTITIES": ".equations",
+    "QUANTITIES": ".equations",
+    "Equations": ".equations",
+    "Options": ".equations",
+    "derive": ".equations",
+    "cache_dir": ".lowering._cache",
+    "Dynamics": ".runtime._dynamics",
+    "compiler_options": ".runtime._jit",
+    "jit": ".runtime._jit",
+    "compilation_cache": ".lowering._xla_cache",
+    "compile_native": "._api",
+    "load": "._api",
+    "lower": "._api",
+    "BuildError": ".lowering._native",
+    "NativeDynamics": ".runtime._native",
+    "codegen": ".codegen",
+    "read_urdf": ".description._urdf",
+    "forward_dynamics": ".runtime._forward",
+    "mass_matrix_condition": ".runtime._forward",
+    "Baumgarte": ".runtime._constrained",
+    "constrained_forward_dynamics": ".runtime._constrained",
+    "constrained_inverse_dynamics": ".runtime._constrained",
+    "Controller": ".apps._field",
+    "vector_field": ".apps._field",
+    "HeldInput": ".apps._field",
+    "RK4": ".apps._integrators",
+    "SemiImplicitEuler": ".apps._integrators",
+    "Checkpoint": ".apps._saving",
+    "SaveAt": ".apps._saving",
+    "Trajectory": ".apps._simulate",
+    "rollout": ".apps._simulate",
+    "DCMotors": ".apps._motor",
+    "Adam": ".apps._identification",
+    "BaseParameters": ".apps._identification",
+    "Estimate": ".apps._identification",
+    "FitResult": ".apps._identification",
+    "GradientDescent": ".apps._identification",
+    "GradientFit": ".apps._identification",
+    "LeastSquares": ".apps._identification",
+    "LogCholesky": ".apps._identification",
+    "PhysicallyConsistent": ".apps._identification",
+    "Standard": ".apps._identification",
+    "WeightedLeastSquares": ".apps._identification",
+    "base_parameters": ".apps._identification",
+    "fit": ".apps._identification",
+    "identify": ".apps._identification",
+    "physically_consistent": ".apps._identification",
+    "quantity_loss": ".apps._identification",
+    "trajectory_loss": ".apps._identification",
+    "EnergyBalance": ".apps._energy_id",
+    "energy_balance": ".apps._energy_id",
+    "momentum_balance": ".apps._energy_id",
+    "ComputedTorque": ".apps._control",
+    "PDGravity": ".apps._control",
+    "SlotineLi": ".apps._control",
+    "mixed_regressor": ".apps._control",
+    "reference_derivatives": ".apps._control",
+    "GroundContact": ".apps._contact",
+    "ExcitationResult": ".apps._excitation",
+    "FourierTrajectory": ".apps._excitation",
+    "design_excitation": ".apps._excitation",
+    "nearest_consistent": ".apps._parameterizations",
+    "estimate_derivatives": ".apps._signals",
+    "lowpass": ".apps._signals",
+    "parallel_filter": ".apps._signals",
+    "quantize": ".apps._signals",
+    "Validation": ".apps._validation",
+    "plot_validation": ".apps._validation",
+    "validate": ".apps._validation",
+    "DescriptionExtras": ".description._yaml_schema",
+    "parse_description": ".description._yaml_schema",
+    "read_description": ".description._yaml_schema",
+    "read_extras": ".description._yaml_schema",
+    "robot_to_dict": ".description._yaml_writer",
+    "write_description": ".description._yaml_writer",
+    "DH": ".description._dh",
+    "dh_robot": ".description._dh",
+    "write_urdf": ".description._urdf_writer",
+    "describe": ".description._report",
+    "draw_tree": ".description._report",
+}
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'jaxskid' has no attribute {name!r}")
+    value = importlib.import_module(module, __name__)
+    if module != f".{name}":  # a name from a module, not the submodule itself
+        value = getattr(value, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
+
 
 __all__ = [
     "DEFAULT_QUANTITIES",

@@ -7,26 +7,11 @@ into slow code, so every jitted entry point of the runtime and the applications 
 from __future__ import annotations
 
 import functools
-import os
 from collections.abc import Callable
 
 import jax
 
-CLASSIC_EMITTERS_FLAG = "--xla_cpu_use_fusion_emitters=false"
-LAST_WITH_CLASSIC_EMITTERS = (0, 10)  # jaxlib 0.11's XLA no longer knows the switch
-
-
-def classic_emitters_switch() -> bool:
-    """Whether this jaxlib's XLA has the switch to its classic CPU emitters. It is gone from jaxlib 0.11,
-    whose XLA aborts the process at an unknown flag in ``XLA_FLAGS`` and refuses an unknown compiler
-    option, so neither is given there."""
-    try:
-        import jaxlib.version
-
-        release = tuple(int(part) for part in jaxlib.version.__version__.split(".")[:2])
-    except (ImportError, AttributeError, ValueError):
-        return False
-    return release <= LAST_WITH_CLASSIC_EMITTERS
+from .._xla_flags import CLASSIC_EMITTERS_FLAG, classic_emitters_switch, prefer_classic_emitters  # noqa: F401
 
 
 def compiler_options() -> dict:
@@ -40,31 +25,6 @@ def compiler_options() -> dict:
     if jax.default_backend() == "cpu" and classic_emitters_switch():
         return {"xla_cpu_use_fusion_emitters": False}
     return {}
-
-
-def prefer_classic_emitters() -> bool:
-    """Make XLA's classic CPU emitters the process's default, so that a plain ``jax.jit`` of jaxskid's
-    functions compiles as :func:`jit` does (a hand-written RK4 loop over the Panda's forward dynamics,
-    batch 256: 0.19 us per evaluation under ``jax.jit`` against 0.09 us under :func:`jit` otherwise).
-
-    Called when jaxskid is imported. It adds :data:`CLASSIC_EMITTERS_FLAG` to ``XLA_FLAGS`` only while
-    JAX's backends have not started (XLA reads the variable once, when they do) and only if ``XLA_FLAGS``
-    says nothing of the fusion emitters: ``XLA_FLAGS=--xla_cpu_use_fusion_emitters=true`` keeps XLA's
-    default. Nothing is added where XLA has no such switch (:func:`classic_emitters_switch`). Returns
-    whether the flag is in effect from this call.
-    """
-    flags = os.environ.get("XLA_FLAGS", "")
-    if "xla_cpu_use_fusion_emitters" in flags or not classic_emitters_switch():
-        return False
-    try:
-        from jax._src import xla_bridge
-
-        if xla_bridge.backends_are_initialized():
-            return False  # too late for this process; jit() still passes the option per program
-    except (ImportError, AttributeError):
-        return False
-    os.environ["XLA_FLAGS"] = f"{flags} {CLASSIC_EMITTERS_FLAG}".strip()
-    return True
 
 
 def traced(tree) -> bool:
