@@ -13,7 +13,8 @@ it, and timed interleaved (medians per state). Forms:
   generates).
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
-:mod:`jaxskid._kernels` (what jaxskid generates). Pinocchio's ``crba`` (or ``rnea``) per call from
+:mod:`jaxskid._kernels` (what jaxskid's programs use on CPU; on other platforms they call XLA's), forced
+here on every platform. Pinocchio's ``crba`` (or ``rnea``) per call from
 Python is printed beside them (``computeCoriolisMatrix``, ``aba`` for the other quantities). For
 ``forward_dynamics`` the pivots' reciprocals are also timed as plain divisions (``/ division``).
 """
@@ -94,6 +95,9 @@ def main(argv=None):
     for label, (src, spread, division) in variants(eqs, args.quantity).items():
         ns = {"jax": jax, "jnp": jnp}
         exec(HELPERS, ns)  # noqa: S102
+        if "/ fused" in label:  # the multiply-adds on every platform (the helpers use them on CPU only)
+            ns["_sin"] = lambda x, ns=ns: ns["_sincos"](x)[0]
+            ns["_cos"] = lambda x, ns=ns: ns["_sincos"](x)[1]
         if division:
             ns["_recip"] = lambda x: 1.0 / x
         exec(src, ns)  # noqa: S102

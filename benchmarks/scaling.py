@@ -2,6 +2,7 @@
 
     python benchmarks/scaling.py [--robots ur5,panda,solo12,g1,g1_hands] [--batch 4096] [--repeats 7]
                                  [--quantities ...] [--plot benchmarks/out/scaling.png] [--no-floating]
+                                 [--trig auto|fused]
 
 Robots (fixed base, from example-robot-data): UR5 (6 DOF), Panda (7, fingers locked), solo12 (12), the
 Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. For each robot and quantity:
@@ -167,6 +168,15 @@ def plot(rows: list[dict], out: Path) -> None:
     fig.savefig(out, dpi=120)
 
 
+def force_fused_trig() -> None:
+    """Make the modules generated from now on use the multiply-add sine and cosine on every platform."""
+    from jaxskid.codegen import _jax
+
+    choice = "    if jax.default_backend() == \"cpu\":\n        return _sincos(x)\n"
+    assert choice in _jax.KERNELS_SOURCE, "jaxskid/_kernels.py changed: update force_fused_trig"
+    _jax.KERNELS_SOURCE = _jax.KERNELS_SOURCE.replace(choice, "    return _sincos(x)\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--robots", default=",".join(ROBOTS))
@@ -174,15 +184,20 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=4096)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--plot", type=Path, default=Path(__file__).parent / "out" / "scaling.png")
+    parser.add_argument("--trig", choices=("auto", "fused"), default="auto",
+                        help="fused: the multiply-add sine and cosine on every platform (jaxskid's programs use them "
+                             "on CPU and XLA's own elsewhere), to compare the two on a GPU")
     parser.add_argument("--floating", action=argparse.BooleanOptionalAction, default=True,
                         help="then the floating-base rows of benchmarks/floating_base.py: tau and M of solo12 and "
                              "the G1 on a free-flyer, and solo12's constrained forward dynamics on four contacts")
     args = parser.parse_args()
     quantities = args.quantities.split(",")
+    if args.trig == "fused":
+        force_fused_trig()
     if any(q not in STATES for q in quantities):
         parser.error(f"--quantities: choose from {', '.join(STATES)}")
-    print(f"jax {jax.__version__}, Pinocchio {pin.__version__}, float64, batch {args.batch}, "
-          f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}")
+    print(f"jax {jax.__version__} on {jax.default_backend()}, Pinocchio {pin.__version__}, float64, batch {args.batch}, "
+          f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}, sine and cosine {args.trig}")
     print("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | Pinocchio per call | ratio |")
     print("|---|---|---|---|---|---|---|")
     rows = []

@@ -242,3 +242,13 @@ def test_split_glue_defines_each_piece_once():
         assert text.count(f"PIECE void {name}(const V *q, V *w)\n{{") == 1
         assert text.count(f"PIECE void {name}(const V *q, V *w);") == 1
     assert "#if JAXSKID_PART == 0\nXLA_FFI_Error *jaxskid_f" in text
+
+
+def test_a_switch_turned_off_then_on_again_is_read_anew(monkeypatch):
+    """JAXSKID_NATIVE=0 at a Dynamics' first use is not kept: once it is unset, the kernel is found."""
+    robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
+    monkeypatch.setenv("JAXSKID_NATIVE", "0")
+    dyn = jaxskid.lower(robot, quantities=["mass_matrix"])
+    assert dyn.native_target("mass_matrix") is None
+    monkeypatch.delenv("JAXSKID_NATIVE")
+    assert dyn.native_target("mass_matrix") is not None

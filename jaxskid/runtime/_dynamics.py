@@ -19,6 +19,7 @@ import numpy as np
 
 from .._errors import RequestError, ShapeError
 from ._base import QuantitySet, metadata_fields
+from ._ffi import enabled as native_enabled
 from ._ffi import library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
@@ -137,6 +138,8 @@ class Dynamics(QuantitySet):
         if name != "fd_vjp" and name not in self._native_names:
             return None
         if self._native_path is False:
+            if not native_enabled():
+                return None  # not kept: the switch (JAXSKID_NATIVE) may change later in the process
             self._native_path = library(self._native_build, self.robot_name)
         return target(self._native_path, name)
 
