@@ -53,3 +53,22 @@ def test_no_function_over_80_lines():
             if n > MAX_FUNCTION_LINES and f"{rel}:{name}" not in GENERATED_TABLES:
                 too_long.append(f"{rel}:{line} {name}: {n} lines")
     assert not too_long, f"functions over {MAX_FUNCTION_LINES} lines:\n" + "\n".join(too_long)
+
+
+def test_public_names_are_listed_once_for_import_and_once_for_type_checkers():
+    """``jaxskid/__init__.py`` imports each public name on first use (``_LAZY``) and lists the same imports
+    under ``TYPE_CHECKING`` for type checkers and editors: the two agree, and every name of ``__all__``
+    resolves."""
+    import jaxskid
+
+    tree = ast.parse((PACKAGE / "__init__.py").read_text(encoding="utf-8"))
+    (block,) = [node for node in tree.body if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING"]
+    static = {}
+    for node in block.body:
+        assert isinstance(node, ast.ImportFrom), ast.unparse(node)
+        module = "." * node.level + (node.module or "")
+        for alias in node.names:
+            static[alias.asname or alias.name] = f".{alias.name}" if module == "." else module
+    assert static == jaxskid._LAZY
+    for name in jaxskid.__all__:
+        assert getattr(jaxskid, name) is not None, name
