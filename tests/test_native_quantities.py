@@ -244,11 +244,14 @@ def test_split_glue_defines_each_piece_once():
     assert "#if JAXSKID_PART == 0\nXLA_FFI_Error *jaxskid_f" in text
 
 
-def test_a_switch_turned_off_then_on_again_is_read_anew(monkeypatch):
-    """JAXSKID_NATIVE=0 at a Dynamics' first use is not kept: once it is unset, the kernel is found."""
+def test_the_switch_is_read_when_a_dynamics_is_made(monkeypatch):
+    """JAXSKID_NATIVE is read when a Dynamics is made and kept for its life: turned off at the first use of one
+    made before, it changes nothing there, and one made while it was off stays without kernels."""
     robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
+    on = jaxskid.lower(robot, quantities=["mass_matrix"])
     monkeypatch.setenv("JAXSKID_NATIVE", "0")
-    dyn = jaxskid.lower(robot, quantities=["mass_matrix"])
-    assert dyn.native_target("mass_matrix") is None
+    off = jaxskid.lower(robot, quantities=["mass_matrix"])
+    assert on.native_target("mass_matrix") is not None
+    assert off.native_target("mass_matrix") is None
     monkeypatch.delenv("JAXSKID_NATIVE")
-    assert dyn.native_target("mass_matrix") is not None
+    assert off.native_target("mass_matrix") is None

@@ -95,6 +95,7 @@ class Dynamics(QuantitySet):
         self._native_build = functools.partial(native, native_c) if native and native_c else None
         self._native_names = frozenset(k[0] for k in (native_c or {}).get("kernels", ()))
         self._native_path: str | None | bool = False  # False: not built or looked for yet
+        self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
 
     def raw(self, name: str, batched: bool = True) -> Callable:
         """The function of one state, ``f(*state, p)`` with ``p`` a parameter vector, to call inside your own
@@ -138,9 +139,7 @@ class Dynamics(QuantitySet):
         if name != "fd_vjp" and name not in self._native_names:
             return None
         if self._native_path is False:
-            if not native_enabled():
-                return None  # not kept: the switch (JAXSKID_NATIVE) may change later in the process
-            self._native_path = library(self._native_build, self.robot_name)
+            self._native_path = library(self._native_build, self.robot_name) if self._native_wanted else None
         return target(self._native_path, name)
 
     def generated(self, name: str, batched: bool = True) -> Callable:

@@ -57,9 +57,9 @@ def target(path: str | None, handler: str) -> str | None:
 
 
 def library(build: Callable[[], str] | None, label: str) -> str | None:
-    """The path of the library ``build()`` makes, or None (turned off, or the build failed: logged once
-    per robot, and the pure-JAX kernels serve)."""
-    if build is None or not enabled():
+    """The path of the library ``build()`` makes, or None (no build, or it failed: logged once per robot,
+    and the pure-JAX kernels serve). The caller has checked :func:`enabled`."""
+    if build is None:
         return None
     try:
         path = str(build())
