@@ -172,14 +172,14 @@ def test_no_classic_emitters_switch_where_xla_lacks_it(monkeypatch):
 
     import jaxlib.version
 
-    from jaxskid.runtime import _jit
+    from jaxskid import _xla_flags, compiler_options
 
     monkeypatch.setattr(jaxlib.version, "__version__", "0.11.2")
     monkeypatch.delenv("XLA_FLAGS", raising=False)
-    assert not _jit.classic_emitters_switch()
-    assert _jit.compiler_options() == {}
+    assert not _xla_flags.classic_emitters_switch()
+    assert compiler_options() == {}
     monkeypatch.setattr("jax._src.xla_bridge.backends_are_initialized", lambda: False)
-    assert _jit.prefer_classic_emitters() is False
+    assert _xla_flags.prefer_classic_emitters() is False
     assert "XLA_FLAGS" not in os.environ
     monkeypatch.setattr(jaxlib.version, "__version__", "0.10.2")
-    assert _jit.classic_emitters_switch() and _jit.compiler_options() == {"xla_cpu_use_fusion_emitters": False}
+    assert _xla_flags.classic_emitters_switch() and compiler_options() == {"xla_cpu_use_fusion_emitters": False}

@@ -19,8 +19,7 @@ import numpy as np
 
 from .._errors import RequestError, ShapeError
 from ._base import QuantitySet, metadata_fields
-from ._ffi import enabled as native_enabled
-from ._ffi import library, native_quantity, target
+from ._ffi import enabled as native_enabled, library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._forward import accelerations, forward_dynamics

@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import jax
 
-from .._xla_flags import CLASSIC_EMITTERS_FLAG, classic_emitters_switch, prefer_classic_emitters  # noqa: F401
+from .._xla_flags import classic_emitters_switch
 
 
 def compiler_options() -> dict:
