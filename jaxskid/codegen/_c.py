@@ -19,9 +19,10 @@ from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
 from ._common import Kernel, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
+from ._printing import FastArithmetic
 
 
-class CPrinter(NumberTweaks, C99CodePrinter):
+class CPrinter(NumberTweaks, FastArithmetic, C99CodePrinter):
     """C99 expressions with jaxskid's number and power conventions."""
 
     def _print_sign(self, expr):
@@ -32,7 +33,7 @@ class CPrinter(NumberTweaks, C99CodePrinter):
         return f"copysign((double)(({x}) != 0), {x})"
 
 
-class CxxPrinter(NumberTweaks, CXX11CodePrinter):
+class CxxPrinter(NumberTweaks, FastArithmetic, CXX11CodePrinter):
     """C++ expressions (``std::sin``, ...) with jaxskid's number and power conventions."""
 
     _sqrt_name = "std::sqrt"

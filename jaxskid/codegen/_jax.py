@@ -38,12 +38,13 @@ from sympy.printing.precedence import PRECEDENCE
 from .._kernels import SOURCE as KERNELS_SOURCE
 from ..equations._derive import Equations
 from ._common import Kernel, Layout, NumberTweaks, statements, unravel
+from ._printing import FastArithmetic
 
 GENERATOR_VERSION = "11"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 
-class JaxPrinter(NumberTweaks, _SympyJaxPrinter):
+class JaxPrinter(NumberTweaks, FastArithmetic, _SympyJaxPrinter):
     """JAX printer with the shared number rules (:class:`~jaxskid.codegen._printing.NumberTweaks`): plain
     Python float literals are weakly typed, so constants take the inputs' dtype. Sine, cosine and
     negative powers call the fused helpers of :mod:`jaxskid._kernels`."""

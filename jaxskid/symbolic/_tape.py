@@ -20,6 +20,7 @@ class Tape:
         self.prefix = prefix
         self.defs: dict[sp.Symbol, sp.Expr] = {}
         self._lookup: dict[sp.Expr, sp.Symbol] = {}
+        self._terms: dict[frozenset, sp.Symbol] = {}  # _terms(e) -> the name of e, to find -e without forming it
 
     def __call__(self, e) -> sp.Expr:
         """The name of ``e`` (a new one, or the one it already has; ``-name`` for ``-e``); atoms and
@@ -30,12 +31,14 @@ class Tape:
         hit = self._lookup.get(e)
         if hit is not None:
             return hit
-        neg = self._lookup.get(-e)
+        terms = _terms(e)
+        neg = self._terms.get(frozenset((-c, t) for c, t in terms))
         if neg is not None:
             return -neg
         s = sp.Symbol(f"{self.prefix}{len(self.defs)}", real=True)
         self.defs[s] = e
         self._lookup[e] = s
+        self._terms[terms] = s
         return s
 
     def define(self, name: sp.Symbol, e) -> None:
@@ -46,10 +49,19 @@ class Tape:
             raise ValueError(f"{name} is already defined on the tape")
         self.defs[name] = e
         self._lookup.setdefault(e, name)
+        self._terms.setdefault(_terms(e), name)
 
     def vec(self, es) -> list:
         """Each entry of ``es`` named, in order."""
         return [self(e) for e in es]
+
+
+def _terms(e: sp.Expr) -> frozenset:
+    """The terms of ``e`` as ``(number, rest)`` pairs. SymPy keeps a sum's like terms collected (one term per
+    ``rest``), so two expressions are equal exactly when their pairs are, and ``-e`` has every number
+    negated: the tape finds a negated expression from these without forming it (SymPy's negation of a sum
+    builds and flattens every term again, a quarter of the G1's Coriolis derivation)."""
+    return frozenset(t.as_coeff_Mul() for t in sp.Add.make_args(e))
 
 
 def _is_trivial(e: sp.Expr) -> bool:
