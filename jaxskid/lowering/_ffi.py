@@ -297,8 +297,10 @@ def _chunked(name: str, params: str, body: str, vec: str) -> str:
     pieces, calls = [], []
     for c in range(0, len(lines), CHUNK):
         chunk = lines[c:c + CHUNK]
+        # inputs (no slot) by name: an order that a set's (which varies with each process's string hashes) would
+        # give makes a new source, and a new build, in every process
         needed = sorted({v for used in reads[c:c + CHUNK] for v in used if defined[v] < c // CHUNK},
-                        key=lambda v: slots.get(v, -1))
+                        key=lambda v: (slots.get(v, -1), v))
         text = [inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed]
         for line in chunk:
             text.append(line)
