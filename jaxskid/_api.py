@@ -91,10 +91,11 @@ def lower(
         if options is not None and options != model.options:
             raise RequestError(f"lower: options {options} differ from the equations' {model.options}")
         robot, names, options = model.robot, _derived(model, quantities), model.options
+        asked = names
     else:
         robot = model if symbolic is None else model.keep_symbolic(symbolic)
-        names, options = resolve(robot, quantities), options or Options()
-        names = resolve(robot, [*names, *(k for n in names for k in QUANTITIES[n].derivatives)])
+        asked, options = resolve(robot, quantities), options or Options()
+        names = resolve(robot, [*asked, *(k for n in asked for k in QUANTITIES[n].derivatives)])
     key = module_key(robot, names, options)
     if cache:
         default_compilation_cache()
@@ -105,7 +106,8 @@ def lower(
         native = native_sources(eqs, names, jax_names)  # kernels shared with the JAX module
         if native is not None and cache and native_enabled():
             # the C compiler works on the native kernels while the JAX module is printed
-            ffi_library_soon(native, Path(cache_dir or default_cache_dir()) / "native")
+            later = not set(asked) & {k[0] for k in native["kernels"]}  # only for derivatives
+            ffi_library_soon(native, Path(cache_dir or default_cache_dir()) / "native", later)
         module = module_source(Layout(eqs, names, jax_names)) + native_block(native)
         found = store_entry(path, module, key)
     namespace, source = found

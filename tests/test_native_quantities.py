@@ -212,8 +212,8 @@ def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
     monkeypatch.setattr(_ffi_build, "_cores", lambda: 2)
     units = []
     compile_all = _ffi_build._compile_all
-    monkeypatch.setattr(_ffi_build, "_compile_all", lambda commands, tmp: (units.append(len(commands)),
-                                                                         compile_all(commands, tmp)))
+    monkeypatch.setattr(_ffi_build, "_compile_all", lambda commands, *rest: (units.append(len(commands)),
+                                                                           compile_all(commands, *rest)))
     robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
     dyn = jaxskid.lower(robot, quantities=["coriolis_matrix", "forward_dynamics"], cache_dir=tmp_path)
     p = dyn.param_vector()
@@ -278,3 +278,21 @@ def test_split_kernel_source_is_the_same_in_every_process():
     digests = {subprocess.run([sys.executable, "-c", _CHUNKED], check=True, capture_output=True, text=True,
                               env={**os.environ, "PYTHONHASHSEED": str(seed)}).stdout for seed in (1, 2, 3)}
     assert len(digests) == 1
+
+
+def test_a_build_for_derivatives_alone_runs_at_low_priority(monkeypatch, tmp_path):
+    """Forward dynamics alone brings M and the vector-Jacobian product of inverse dynamics for its
+    derivatives: their library is compiled at a low priority (it serves later calls), and still builds; a
+    requested matrix quantity's library at the normal one."""
+    from jaxskid.lowering import _ffi_build
+
+    nices = []
+    compile_all = _ffi_build._compile_all
+    monkeypatch.setattr(_ffi_build, "_compile_all",
+                        lambda commands, tmp, nice=0: (nices.append(nice), compile_all(commands, tmp, nice)))
+    robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
+    later = jaxskid.lower(robot, quantities=["forward_dynamics"], cache_dir=tmp_path / "later")
+    assert later.native_target() is not None and nices and set(nices) == {_ffi_build._LATER}
+    nices.clear()
+    now = jaxskid.lower(robot, quantities=["forward_dynamics", "mass_matrix"], cache_dir=tmp_path / "now")
+    assert now.native_target("mass_matrix") is not None and nices and set(nices) == {0}

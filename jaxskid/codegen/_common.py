@@ -134,11 +134,12 @@ class Layout:
         """The kernels of ``names``, made once per equations, quantity and naming: the layouts of one
         lowering (the JAX module and its native C) share them (the G1's Coriolis matrix: 2.7 s)."""
         made = self.eqs.__dict__.setdefault("_kernels", {})  # frozen, but this cache is its own
+        renamed = self.eqs.__dict__.setdefault("_renamed", {}).setdefault(self.naming, {})
         rename = None
         for n in self.names:
             if (n, self.naming) not in made:
                 rename = self.naming(self.eqs) if rename is None else rename
-                made[(n, self.naming)] = kernel(self.eqs, n, rename)
+                made[(n, self.naming)] = kernel(self.eqs, n, rename, renamed)
         return tuple(made[(n, self.naming)] for n in self.names)
 
     def metadata(self) -> dict:
@@ -207,15 +208,21 @@ class Layout:
         return lines
 
 
-def kernel(eqs: Equations, name: str, rename: dict) -> Kernel:
-    """The program of one quantity, pruned and renamed (see the module docstring)."""
+def kernel(eqs: Equations, name: str, rename: dict, renamed: dict | None = None) -> Kernel:
+    """The program of one quantity, pruned and renamed (see the module docstring). ``renamed``: the renamed
+    assignments by symbol, shared by the kernels of one renaming (their programs overlap: forward dynamics
+    holds most of the mass matrix and inverse dynamics)."""
     qty = eqs.quantities[name]
     prog = eqs.program([name])
+    renamed = {} if renamed is None else renamed
     used: set = set()
     body = []
     for s, e in prog:
-        used |= e.free_symbols
-        body.append((rename.get(s, s), e.xreplace(rename)))
+        free = e.free_symbols
+        used |= free
+        if s not in renamed:
+            renamed[s] = e if rename.keys().isdisjoint(free) else e.xreplace(rename)
+        body.append((rename.get(s, s), renamed[s]))
     outputs = []
     for e in qty.outputs:
         e = sp.sympify(e)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import concurrent.futures
 import os
 import re
+import shutil
 import subprocess
 import threading
 from collections.abc import Mapping
@@ -33,10 +34,12 @@ def ffi_library(native: Mapping, root: Path) -> Path:
     return pending.result() if pending is not None else _build(*plan)
 
 
-def ffi_library_soon(native: Mapping, root: Path) -> None:
+def ffi_library_soon(native: Mapping, root: Path, later: bool = False) -> None:
     """Start :func:`ffi_library` in a background thread and return at once: the compiler runs in its own
     process while the caller goes on (printing the JAX module). A build that cannot start is left to
-    :func:`ffi_library`, which reports it."""
+    :func:`ffi_library`, which reports it. ``later``: the library serves only what is used later (the
+    derivatives of forward dynamics), so the compiler runs at a low priority: on two cores its build slowed
+    the first call of the G1's forward dynamics, which does not need it, from 13-16 to 18-21 s."""
     try:
         plan = _plan(native, root)
     except BuildError:
@@ -47,8 +50,11 @@ def ffi_library_soon(native: Mapping, root: Path) -> None:
         global _POOL
         if _POOL is None:
             _POOL = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="jaxskid-cc")
-        _PENDING[plan[0]] = _POOL.submit(_build, *plan)
+        _PENDING[plan[0]] = _POOL.submit(_build, *plan, nice=_LATER if later else 0)
 
+
+_LATER = 10
+"""The niceness of a compiler building for :func:`ffi_library_soon` with ``later``."""
 
 _LOCK = threading.Lock()
 _PENDING: dict[Path, concurrent.futures.Future] = {}  # builds started by ffi_library_soon, by library path
@@ -71,25 +77,30 @@ def _plan(native: Mapping, root: Path) -> tuple:
     return final, stem, native["header"], native["source"], glue, (*cc.split(), *flags, "-I", inc), parts
 
 
-def _build(final: Path, stem: str, header: str, source: str, glue: str, command: tuple, parts: int) -> Path:
+def _build(final: Path, stem: str, header: str, source: str, glue: str, command: tuple, parts: int,
+           nice: int = 0) -> Path:
     if not final.exists():
         tmp = _sources(final.parent.parent, stem, header, source)
         (tmp / "glue.c").write_text(glue)
         out, glue_file = tmp / final.name, str(tmp / "glue.c")
         if parts == 1:
-            _compile_all([[*command, "-shared", "-I", str(tmp), "-o", str(out), glue_file, "-lm"]], tmp)
+            _compile_all([[*command, "-shared", "-I", str(tmp), "-o", str(out), glue_file, "-lm"]], tmp, nice)
         else:
             objects = [str(tmp / f"part{k}.o") for k in range(parts)]
             _compile_all([[*command, f"-DJAXSKID_PART={k}", "-I", str(tmp), "-c", "-o", obj, glue_file]
-                          for k, obj in enumerate(objects)], tmp)
-            _compile_all([[*command, "-shared", "-o", str(out), *objects, "-lm"]], tmp)
+                          for k, obj in enumerate(objects)], tmp, nice)
+            _compile_all([[*command, "-shared", "-o", str(out), *objects, "-lm"]], tmp, nice)
         _install(tmp, out, final)
     return final
 
 
-def _compile_all(commands: list[list[str]], tmp: Path) -> None:
-    """Run the compiler commands at once; on a failure, as :func:`._native._compile` does."""
-    procs = [subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for cmd in commands]
+def _compile_all(commands: list[list[str]], tmp: Path, nice: int = 0) -> None:
+    """Run the compiler commands at once, ``nice`` lower in priority; on a failure, as
+    :func:`._native._compile` does."""
+    runner = shutil.which("nice") if nice else None  # the compiler's own processes inherit its niceness
+    prefix = [runner, "-n", str(nice)] if runner else []
+    procs = [subprocess.Popen([*prefix, *cmd], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for cmd in commands]
     failed = [cmd for cmd, proc in zip(commands, procs) if proc.wait() != 0]
     if failed:
         _compile(failed[0], tmp)  # again, to raise BuildError with the compiler's output
