@@ -191,6 +191,9 @@ def main() -> None:
                         help="then the floating-base rows of benchmarks/floating_base.py: tau and M of solo12 and "
                              "the G1 on a free-flyer, and solo12's constrained forward dynamics on four contacts")
     args = parser.parse_args()
+    # XLA's compilation cache in a fresh folder too: jaxskid.lower keeps it in jaxskid.cache_dir(), whatever
+    # the cache_dir of the generated module, so a second run would find the programs of the first
+    jaxskid.compilation_cache(tempfile.mkdtemp(prefix="jaxskid-xla-"))
     quantities = args.quantities.split(",")
     if args.trig == "fused":
         force_fused_trig()

@@ -48,6 +48,9 @@ def main() -> None:
     parser.add_argument("--robots", default="panda,solo12")
     parser.add_argument("--batch", type=int, default=4096)
     args = parser.parse_args()
+    # XLA's compilation cache in a fresh folder too: jaxskid.lower keeps it in jaxskid.cache_dir(), whatever
+    # the cache_dir of the generated module, so a second run would find the programs of the first
+    jaxskid.compilation_cache(tempfile.mkdtemp(prefix="jaxskid-xla-"))
     print("| robot (DOF) | second-order set: lower, first calls, total | M alone, total |")
     print("|---|---|---|")
     for name in args.robots.split(","):
