@@ -268,9 +268,10 @@ LONG = 1024
 HUGE = 5000
 """Bodies of more statements are compiled at GCC's ``-Og`` (the rest of the library at ``-O2``). GCC took
 half as long on them, and they ran as fast: the G1's Coriolis matrix (6,900 statements) and regressor
-(11,000) at 4.9 and 11.8 us per state against 5.0 and 11.7 at ``-O2``, and its Coriolis matrix's cold
-lowering fell from 16.5 to 11.5 s. Shorter bodies lost 20-40% at ``-Og`` (the G1's and the Panda's mass
-matrices, 1.43 against 1.09 and 0.118 against 0.085 us), and their build is short anyway."""
+(11,000) at 4.4 and 11.8 us per state against 5.0 and 11.8 at ``-O2`` (both libraries in one process,
+alternated); with its whole library at ``-Og``, the Coriolis matrix's cold lowering took 11.5 against 16.5
+s. Shorter bodies lost 20-40% at ``-Og`` (the G1's and the Panda's mass matrices, 1.43 against 1.09 and
+0.118 against 0.085 us), and their build is short anyway."""
 
 _DEF = re.compile(r"^\s*const (\w+) (\w+) = (.*);$")
 _NAME = re.compile(r"\b[A-Za-z_]\w*\b")

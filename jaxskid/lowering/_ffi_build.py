@@ -38,8 +38,8 @@ def ffi_library_soon(native: Mapping, root: Path, later: bool = False) -> None:
     """Start :func:`ffi_library` in a background thread and return at once: the compiler runs in its own
     process while the caller goes on (printing the JAX module). A build that cannot start is left to
     :func:`ffi_library`, which reports it. ``later``: the library serves only what is used later (the
-    derivatives of forward dynamics), so the compiler runs at a low priority: on two cores its build slowed
-    the first call of the G1's forward dynamics, which does not need it, from 13-16 to 18-21 s."""
+    derivatives of forward dynamics), so the compiler runs at a low priority: on two cores its build made
+    the first call of the G1's forward dynamics, which does not need it, 3-5 s slower."""
     try:
         plan = _plan(native, root)
     except BuildError:
