@@ -81,6 +81,9 @@ def lower(
             replaced by its default value (the ``assignments``). ``None`` keeps all parameters symbolic.
             Only for a robot: substitute before deriving for ``Equations``.
         cache: reuse and write generated modules in ``cache_dir`` (default :func:`jaxskid.cache_dir`).
+        cache_dir: where the generated module and its native library are kept. XLA's compiled programs go to
+            the process-wide cache of :func:`jaxskid.compilation_cache` (``jaxskid.cache_dir() / "xla"``,
+            unless you chose another), whatever ``cache_dir`` is.
         options: how expressions are formed (:class:`jaxskid.Options`: CSE, simplification, trig); for
             ``Equations``, the options they were derived with.
         progress: show a progress bar while deriving.
