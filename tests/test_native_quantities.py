@@ -268,7 +268,8 @@ lines = [f"    const double a{k} = x[{k}];" for k in range(40)]
 lines += [f"    const double b{k} = a{k % 40} * a{(7 * k) % 40} + {k}.0;" for k in range(LONG + 200)]
 lines += [f"    out[{k}] = b{k} + a{(3 * k) % 40};" for k in range(LONG + 200)]
 import hashlib
-print(hashlib.sha256(_chunked("f", "const double *x, double *out", "\\n".join(lines) + "\\n", "double").encode()).hexdigest())
+source = _chunked("f", "const double *x, double *out", "\\n".join(lines) + "\\n", "double")
+print(hashlib.sha256(source.encode()).hexdigest())
 """
 
 
