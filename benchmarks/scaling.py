@@ -177,6 +177,13 @@ def force_fused_trig() -> None:
     _jax.KERNELS_SOURCE = _jax.KERNELS_SOURCE.replace(choice, "    return _sincos(x)\n")
 
 
+def empty_compilation_cache() -> None:
+    """XLA's compilation cache in a fresh folder, for cold figures: ``jaxskid.lower`` keeps it in
+    ``jaxskid.cache_dir()`` whatever the ``cache_dir`` of the generated module, so a second run of a script
+    would find the programs of the first."""
+    jaxskid.compilation_cache(tempfile.mkdtemp(prefix="jaxskid-xla-"))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--robots", default=",".join(ROBOTS))
@@ -191,9 +198,7 @@ def main() -> None:
                         help="then the floating-base rows of benchmarks/floating_base.py: tau and M of solo12 and "
                              "the G1 on a free-flyer, and solo12's constrained forward dynamics on four contacts")
     args = parser.parse_args()
-    # XLA's compilation cache in a fresh folder too: jaxskid.lower keeps it in jaxskid.cache_dir(), whatever
-    # the cache_dir of the generated module, so a second run would find the programs of the first
-    jaxskid.compilation_cache(tempfile.mkdtemp(prefix="jaxskid-xla-"))
+    empty_compilation_cache()
     quantities = args.quantities.split(",")
     if args.trig == "fused":
         force_fused_trig()

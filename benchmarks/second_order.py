@@ -24,7 +24,7 @@ import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxskid  # noqa: E402
-from scaling import ERD, ROBOTS  # noqa: E402  (benchmarks/scaling.py, beside this script)
+from scaling import ERD, ROBOTS, empty_compilation_cache  # noqa: E402  (benchmarks/scaling.py, beside this script)
 
 BASES = ("mass_matrix", "coriolis_matrix", "gravity_torques", "inverse_dynamics")
 SET = tuple(b + s for s in ("", "_dot", "_ddot") for b in BASES)
@@ -48,9 +48,7 @@ def main() -> None:
     parser.add_argument("--robots", default="panda,solo12")
     parser.add_argument("--batch", type=int, default=4096)
     args = parser.parse_args()
-    # XLA's compilation cache in a fresh folder too: jaxskid.lower keeps it in jaxskid.cache_dir(), whatever
-    # the cache_dir of the generated module, so a second run would find the programs of the first
-    jaxskid.compilation_cache(tempfile.mkdtemp(prefix="jaxskid-xla-"))
+    empty_compilation_cache()
     print("| robot (DOF) | second-order set: lower, first calls, total | M alone, total |")
     print("|---|---|---|")
     for name in args.robots.split(","):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ._errors import ModelError, RequestError
 from .codegen import Layout
-from .codegen._c import emit_c, native_block, native_sources
+from .codegen._c import emit_c, native_block, native_quantities, native_sources
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
@@ -109,7 +109,7 @@ def lower(
         native = native_sources(eqs, names, jax_names)  # kernels shared with the JAX module
         if native is not None and cache and native_enabled():
             # the C compiler works on the native kernels while the JAX module is printed
-            later = not set(asked) & {k[0] for k in native["kernels"]}  # only for derivatives
+            later = not native_quantities(eqs, asked)  # its kernels serve only the derivatives
             ffi_library_soon(native, Path(cache_dir or default_cache_dir()) / "native", later)
         module = module_source(Layout(eqs, names, jax_names)) + native_block(native)
         found = store_entry(path, module, key)

@@ -208,13 +208,12 @@ class Layout:
         return lines
 
 
-def kernel(eqs: Equations, name: str, rename: dict, renamed: dict | None = None) -> Kernel:
+def kernel(eqs: Equations, name: str, rename: dict, renamed: dict) -> Kernel:
     """The program of one quantity, pruned and renamed (see the module docstring). ``renamed``: the renamed
     assignments by symbol, shared by the kernels of one renaming (their programs overlap: forward dynamics
     holds most of the mass matrix and inverse dynamics)."""
     qty = eqs.quantities[name]
     prog = eqs.program([name])
-    renamed = {} if renamed is None else renamed
     used: set = set()
     body = []
     for s, e in prog:
