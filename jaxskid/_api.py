@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ._errors import ModelError, RequestError
 from .codegen import Layout
-from .codegen._c import emit_c, native_block, native_quantities, native_sources
+from .codegen._c import emit_c, native_block, native_sources
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
@@ -106,11 +106,14 @@ def lower(
     found = read_entry(path, key) if path is not None else None
     if found is None:
         eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
-        native = native_sources(eqs, names, jax_names)  # kernels shared with the JAX module
-        if native is not None and cache and native_enabled():
-            # the C compiler works on the native kernels while the JAX module is printed
-            later = not native_quantities(eqs, asked)  # its kernels serve only the derivatives
-            ffi_library_soon(native, Path(cache_dir or default_cache_dir()) / "native", later)
+        native = []
+        for library in native_sources(eqs, names, jax_names, first=asked):  # kernels shared with the JAX module
+            native.append(library)
+            if cache and native_enabled():
+                # the C compiler works on each library while the next and the JAX module are printed; the
+                # one of the quantities that only serve the requested ones' derivatives at a low priority
+                later = not {k[0] for k in library["kernels"]} & set(asked)
+                ffi_library_soon(library, Path(cache_dir or default_cache_dir()) / "native", later)
         module = module_source(Layout(eqs, names, jax_names)) + native_block(native)
         found = store_entry(path, module, key)
     namespace, source = found
@@ -120,8 +123,8 @@ def lower(
 
 
 def _native_library(native: Mapping[str, str], root: Path | None) -> Path:
-    """Build the native backward kernel of forward dynamics (:mod:`jaxskid.lowering._ffi`) in ``root``, or
-    in a temporary folder when the cache is off."""
+    """Build a native library (one of :func:`~jaxskid.codegen._c.native_sources`; :mod:`jaxskid.lowering._ffi`)
+    in ``root``, or in a temporary folder when the cache is off."""
     if root is None:
         import tempfile
 

@@ -116,7 +116,7 @@ def test_jax_target_is_the_lowered_module(case):
     before, module, trailer = case.dyn.source.partition(path.read_text())
     assert not before and module, "the cache entry is the module followed by its key and checksum lines"
     # between them, the C of the native kernels (matrix-valued quantities, the backward step of forward dynamics)
-    lines = [line for line in trailer.splitlines() if line and not line.startswith("NATIVE_C = {")]
+    lines = [line for line in trailer.splitlines() if line and not line.startswith("NATIVE_C = (")]
     assert [line.split(":")[0] for line in lines] == ["# jaxskid-key", "# jaxskid-checksum"]
     ns: dict = {}
     exec(compile(path.read_text(), str(path), "exec"), ns)

@@ -159,6 +159,35 @@ def test_gradients_match_central_differences(arm):
             assert abs(float(g[k]) - fd) < 1e-6 * max(1.0, abs(fd)), (arg, k, float(g[k]), fd)
 
 
+def test_forward_dynamics_from_python_runs_the_native_kernel(monkeypatch):
+    """Called from Python without a wrench, forward dynamics runs its C kernel (one call per batch, no XLA
+    program of the closed form to compile); inside a caller's trace it is the JAX form, which XLA fuses with
+    the caller's program. Both agree, in float64 and float32, on a batch and on a single state."""
+    from jaxskid.runtime import _forward
+
+    robot = jaxskid.load(ROBOTS_DIR / "hopping_leg.yaml")
+    dyn = jaxskid.lower(robot, quantities=["forward_dynamics"])
+    target = dyn.native_target("forward_dynamics")
+    assert target is not None
+    used = []
+    wrap = _forward.native_quantity
+    monkeypatch.setattr(_forward, "native_quantity", lambda name, *rest: (used.append(name), wrap(name, *rest))[1])
+    q, qd, tau = _states(dyn.n_dof, (9,), seed=8)
+    p = dyn.param_vector()
+    ref = jax.vmap(dyn.raw("forward_dynamics"), in_axes=(0, 0, 0, None))(q, qd, tau, p)
+    scale = float(jnp.abs(ref).max())
+    np.testing.assert_allclose(dyn.forward_dynamics(q, qd, tau), ref, rtol=1e-12, atol=1e-13 * scale)
+    np.testing.assert_allclose(dyn.forward_dynamics(q[2], qd[2], tau[2]), ref[2], rtol=1e-12, atol=1e-13 * scale)
+    got32 = dyn.forward_dynamics(*(x.astype(jnp.float32) for x in (q, qd, tau)), p.astype(jnp.float32))
+    assert got32.dtype == jnp.float32
+    np.testing.assert_allclose(got32, ref, rtol=1e-4, atol=1e-5 * scale)
+    assert used and set(used) == {target}
+    used.clear()
+    inside = jax.jit(lambda q: dyn.forward_dynamics(q, qd, tau))(q)
+    assert not used
+    np.testing.assert_allclose(inside, ref, rtol=1e-12, atol=1e-13 * scale)
+
+
 def test_off_switch(panda, monkeypatch):
     robot, dyn = panda
     monkeypatch.setenv("JAXSKID_NATIVE", "0")
@@ -181,10 +210,11 @@ def test_unknown_dtype_takes_the_jax_form(panda):
 
 @pytest.mark.slow
 def test_g1_29dof_against_pinocchio():
-    """The 29-DOF humanoid: M, C and the regressor of the native kernels against Pinocchio at 1e-9."""
+    """The 29-DOF humanoid: M, C, the regressor and forward dynamics of the native kernels against Pinocchio at
+    1e-9 (relative to the largest acceleration for forward dynamics)."""
     robot = jaxskid.read_urdf(G1)
-    dyn = jaxskid.lower(robot, quantities=["mass_matrix", "coriolis_matrix", "regressor"])
-    for name in ("mass_matrix", "coriolis_matrix", "regressor"):
+    dyn = jaxskid.lower(robot, quantities=["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"])
+    for name in ("mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"):
         assert dyn.native_target(name) is not None
     model = pinocchio_urdf_model(G1)
     data = model.createData()
@@ -198,6 +228,11 @@ def test_g1_29dof_against_pinocchio():
         np.testing.assert_allclose(c[k], pin.computeCoriolisMatrix(model, data, q[k], qd[k]), rtol=0, atol=1e-9)
         np.testing.assert_allclose(y[k], pin.computeJointTorqueRegressor(model, data, q[k], qd[k], qdd[k]),
                                    rtol=0, atol=1e-9)
+    tau = 20.0 * qdd
+    qdd_ours = dyn.forward_dynamics(q, qd, tau)
+    for k in range(len(q)):
+        ref = pin.aba(model, data, q[k], qd[k], tau[k])
+        np.testing.assert_allclose(qdd_ours[k], ref, rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
 
 
 def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
@@ -212,14 +247,19 @@ def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
     monkeypatch.setattr(_ffi_build, "_cores", lambda: 2)
     units = []
     compile_all = _ffi_build._compile_all
-    monkeypatch.setattr(_ffi_build, "_compile_all", lambda commands, *rest: (units.append(len(commands)),
-                                                                           compile_all(commands, *rest)))
+
+    def record(commands, tmp, *rest):  # this test's builds (an earlier test's may still run in the background)
+        if tmp_path in tmp.parents:
+            units.append(len(commands))
+        return compile_all(commands, tmp, *rest)
+
+    monkeypatch.setattr(_ffi_build, "_compile_all", record)
     robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
     dyn = jaxskid.lower(robot, quantities=["coriolis_matrix", "forward_dynamics"], cache_dir=tmp_path)
     p = dyn.param_vector()
     q, qd, tau = _states(dyn.n_dof, (9,), seed=4)
     got = dyn.coriolis_matrix(q, qd)
-    assert units == [2, 1]  # two translation units, then the link
+    assert units[:2] == [2, 1]  # two translation units, then the link (then the backward step's library)
     ref = jax.vmap(_pure(dyn, "coriolis_matrix"), in_axes=(0, 0, None))(q, qd, p)
     np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-13 * float(jnp.abs(ref).max()))
 
@@ -282,18 +322,24 @@ def test_split_kernel_source_is_the_same_in_every_process():
 
 
 def test_a_build_for_derivatives_alone_runs_at_low_priority(monkeypatch, tmp_path):
-    """Forward dynamics alone brings M and the vector-Jacobian product of inverse dynamics for its
-    derivatives: their library is compiled at a low priority (it serves later calls), and still builds; a
-    requested matrix quantity's library at the normal one."""
+    """Forward dynamics brings M and the vector-Jacobian product of inverse dynamics for its derivatives:
+    their library (M's kernel and the backward step) is compiled at a low priority, since it serves later
+    calls, and still builds; the library of the requested quantity comes first, at the normal priority."""
     from jaxskid.lowering import _ffi_build
 
-    nices = []
+    builds = []
     compile_all = _ffi_build._compile_all
-    monkeypatch.setattr(_ffi_build, "_compile_all",
-                        lambda commands, tmp, nice=0: (nices.append(nice), compile_all(commands, tmp, nice)))
+
+    def record(commands, tmp, nice=0):
+        if tmp_path in tmp.parents:  # this test's builds (an earlier test's may still run in the background)
+            glue = (tmp / "glue.c").read_text()
+            handlers = tuple(h for h in ("fd_vjp", "forward_dynamics", "mass_matrix") if f"*jaxskid_{h}(" in glue)
+            builds.append((handlers, nice))
+        return compile_all(commands, tmp, nice)
+
+    monkeypatch.setattr(_ffi_build, "_compile_all", record)
     robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
-    later = jaxskid.lower(robot, quantities=["forward_dynamics"], cache_dir=tmp_path / "later")
-    assert later.native_target() is not None and nices and set(nices) == {_ffi_build._LATER}
-    nices.clear()
-    now = jaxskid.lower(robot, quantities=["forward_dynamics", "mass_matrix"], cache_dir=tmp_path / "now")
-    assert now.native_target("mass_matrix") is not None and nices and set(nices) == {0}
+    dyn = jaxskid.lower(robot, quantities=["forward_dynamics"], cache_dir=tmp_path)
+    for name in ("fd_vjp", "forward_dynamics", "mass_matrix"):
+        assert dyn.native_target(name) is not None
+    assert builds == [(("forward_dynamics",), 0), (("fd_vjp", "mass_matrix"), _ffi_build._LATER)]

@@ -13,7 +13,7 @@ returning ``std::array`` (``p`` defaults to ``default_params``). Both compile wa
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
@@ -123,27 +123,42 @@ FFI_QUANTITIES = ("mass_matrix", "inverse_dynamics_vjp")
 (:mod:`jaxskid.lowering._ffi`)."""
 
 
+NATIVE_VECTORS = ("forward_dynamics",)
+"""Vector-valued quantities that get a native kernel too: the closed-form forward dynamics, whose XLA program
+takes longest to compile (the G1's 29 joints: 0.97 against 2.23 us per state, and no XLA compile)."""
+
+
 def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     """The quantities of ``names`` that get a native kernel on CPU (:mod:`jaxskid.lowering._ffi`): those
-    with matrix-valued results (M, C, the regressor, Jacobians, time derivatives, poses). XLA compiles their
-    many entries into programs whose cost grows faster than the arithmetic; vectors stay in JAX, where XLA
-    fuses them with the caller's program."""
-    return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2)
+    with matrix-valued results (M, C, the regressor, Jacobians, time derivatives, poses), whose many entries
+    XLA compiles into programs whose cost grows faster than the arithmetic, and :data:`NATIVE_VECTORS`.
+    Other vectors stay in JAX, where XLA fuses them with the caller's program."""
+    return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2 or n in NATIVE_VECTORS)
 
 
-def native_sources(eqs, names: Sequence[str], naming=portable_names) -> dict | None:
-    """The C of the native kernels of ``names``, ``{"stem", "header", "source", "backward", "kernels"}``:
-    the backward step of forward dynamics when ``names`` hold :data:`FFI_QUANTITIES` (``backward``), and the
-    :func:`native_quantities`, each as ``(name, input sizes, input core ranks, output size, output rank)``
-    with the parameters last; None when there are none. ``naming``: the symbols' renaming
-    (:class:`~jaxskid.codegen._common.Layout`); the JAX module's (:func:`jaxskid.codegen._jax.jax_names`)
-    lets both share their kernels, and the C then sums and multiplies in the JAX form's order."""
-    backward = set(FFI_QUANTITIES) <= set(names)
+def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequence[str] = ()) -> Iterator[dict]:
+    """The C of the native libraries of ``names``, each ``{"stem", "header", "source", "backward",
+    "kernels"}`` and built on its own. ``kernels`` lists the library's :func:`native_quantities`, each as
+    ``(name, input sizes, input core ranks, output size, output rank)`` with the parameters last;
+    ``backward`` says whether it has the backward step of forward dynamics (when ``names`` hold
+    :data:`FFI_QUANTITIES`). The kernels of the quantities in ``first`` come in a library of their own,
+    first; the others, with the backward step, in the next: the quantities that only come with the requested
+    ones, for their derivatives. A generator: the caller can start building one library while the next is
+    printed. ``naming``: the symbols' renaming (:class:`~jaxskid.codegen._common.Layout`); the JAX module's
+    (:func:`jaxskid.codegen._jax.jax_names`) lets both share their kernels, and the C then sums and
+    multiplies in the JAX form's order."""
     kernels = native_quantities(eqs, names)
-    if not (backward or kernels):
-        return None
-    chosen = tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels]))
-    layout = Layout(eqs, chosen, naming)
+    now = tuple(n for n in kernels if n in first)
+    rest = tuple(n for n in kernels if n not in now)
+    backward = set(FFI_QUANTITIES) <= set(names)
+    if now:
+        yield _library(eqs, now, False, naming)
+    if rest or backward:
+        yield _library(eqs, rest, backward, naming)
+
+
+def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> dict:
+    layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])), naming)
     files = emit_c(layout)
     table = []
     for name in kernels:
@@ -154,10 +169,10 @@ def native_sources(eqs, names: Sequence[str], naming=portable_names) -> dict | N
             "backward": backward, "kernels": tuple(table)}
 
 
-def native_block(native: dict | None) -> str:
-    """Python source assigning ``NATIVE_C`` (the :func:`native_sources`) for appending to a generated JAX
-    module; ``""`` for None."""
-    return "" if native is None else f"\nNATIVE_C = {native!r}\n"
+def native_block(native: Sequence[dict]) -> str:
+    """Python source assigning ``NATIVE_C`` (the libraries of :func:`native_sources`) for appending to a
+    generated JAX module; ``""`` for none."""
+    return f"\nNATIVE_C = {tuple(native)!r}\n" if native else ""
 
 
 def emit_cpp(layout: Layout) -> dict[str, str]:

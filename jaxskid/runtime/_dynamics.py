@@ -90,10 +90,14 @@ class Dynamics(QuantitySet):
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
         self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
-        native_c = namespace.get("NATIVE_C")
-        self._native_build = functools.partial(native, native_c) if native and native_c else None
-        self._native_names = frozenset(k[0] for k in (native_c or {}).get("kernels", ()))
-        self._native_path: str | None | bool = False  # False: not built or looked for yet
+        # the native libraries: each handler's library, built on first use
+        self._native_build = {}
+        for lib in namespace.get("NATIVE_C", ()) if native else ():
+            build = functools.partial(native, lib)
+            self._native_build.update({k[0]: build for k in lib["kernels"]})
+            if lib["backward"]:
+                self._native_build["fd_vjp"] = build
+        self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
 
     def raw(self, name: str, batched: bool = True) -> Callable:
@@ -132,14 +136,17 @@ class Dynamics(QuantitySet):
 
     def native_target(self, name: str = "fd_vjp") -> str | None:
         """The registered XLA FFI target of a native kernel (:mod:`jaxskid.runtime._ffi`): ``"fd_vjp"``, the
-        backward step of forward dynamics, or a matrix-valued quantity's name. The library is built on first
-        use; None where there is none (not lowered, a quantity without a vector form in C, turned off with
-        ``JAXSKID_NATIVE=0``, or no C compiler)."""
-        if name != "fd_vjp" and name not in self._native_names:
+        backward step of forward dynamics, or the name of a quantity with a native kernel (the matrix-valued
+        ones and forward dynamics). Its library is built on first use; None where there is none (not
+        lowered, a quantity without a vector form in C, turned off with ``JAXSKID_NATIVE=0``, or no C
+        compiler)."""
+        build = self._native_build.get(name)
+        if build is None:
             return None
-        if self._native_path is False:
-            self._native_path = library(self._native_build, self.robot_name) if self._native_wanted else None
-        return target(self._native_path, name)
+        if name not in self._native_path:
+            path = library(build, self.robot_name) if self._native_wanted else None
+            self._native_path.update({k: path for k, b in self._native_build.items() if b is build})
+        return target(self._native_path[name], name)
 
     def generated(self, name: str, batched: bool = True) -> Callable:
         """The generated function of one state as it is, ``f(*state, p)``: what :meth:`raw` wraps, for

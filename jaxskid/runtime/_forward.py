@@ -23,7 +23,8 @@ import jax.numpy as jnp
 
 from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
-from ._jit import jit
+from ._ffi import native_quantity
+from ._jit import jit, traced
 from ._implicit import differentiable
 from ._ldl import materialize
 from ._parameters import param_array
@@ -91,8 +92,8 @@ def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Calla
     return qdd
 
 
-@partial(jit, static_argnames=("dyn",))
-def _forward_dynamics(dyn, q, qd, tau, params, wrench):
+@partial(jit, static_argnames=("dyn", "native"))
+def _forward_dynamics(dyn, q, qd, tau, params, wrench, native=None):
     (q, qd, tau), dtype = float_arrays((q, qd, tau))
     p = param_array(dyn.layout, params, dtype)
     extras = [("params", p.shape, (len(dyn.parameters),))]
@@ -102,6 +103,9 @@ def _forward_dynamics(dyn, q, qd, tau, params, wrench):
     nq, nv = dyn.argument_shape("q"), dyn.argument_shape("qd")
     batch = batch_shape("forward_dynamics", [("q", q.shape, nq), ("qd", qd.shape, nv), ("tau", tau.shape, nv)], extras)
     f = accelerations(dyn, batched=bool(batch))
+    if native is not None:  # the C kernel, with the closed form's derivatives (jaxskid.runtime._ffi)
+        kernel = native_quantity(native, nv, f)
+        f = lambda q, qd, tau, p, wrench: kernel(q, qd, tau, p)  # noqa: E731 - no wrench on this path
     if not batch:
         return f(q, qd, tau, p, wrench)
     return vmapped(f, batch, [(q, 1), (qd, 1), (tau, 1), (p, 1), (wrench, 2)])
@@ -128,7 +132,11 @@ def forward_dynamics(dyn, q, qd, tau, params=None, *, wrench=None) -> jax.Array:
     require_solver(dyn, "forward_dynamics")
     if wrench is not None and "external_torques" not in dyn.quantities:
         raise RequestError("forward_dynamics with a wrench needs the quantity external_torques; lower it too")
-    return _forward_dynamics(dyn, q, qd, tau, dyn._packed(params), wrench)
+    params = dyn._packed(params)
+    # Called from Python without a wrench: the native kernel, where there is one. Inside a caller's trace
+    # (a rollout, a user's loop) the JAX form stays, which XLA fuses with the rest of the program.
+    native = None if wrench is not None or traced((q, qd, tau, params)) else dyn.native_target("forward_dynamics")
+    return _forward_dynamics(dyn, q, qd, tau, params, wrench, native=native)
 
 
 def mass_matrix_condition(dyn, q, params=None) -> jax.Array:
