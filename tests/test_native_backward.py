@@ -129,4 +129,5 @@ def test_off_switch_and_no_compiler(monkeypatch, tmp_path, caplog):
     g_bare = jax.jit(jax.grad(_rollout_loss(bare)))(p)
     g_on = jax.jit(jax.grad(_rollout_loss(on)))(p)
     np.testing.assert_allclose(g_on, g_off, rtol=1e-11, atol=1e-11 * float(jnp.abs(g_off).max()))
-    np.testing.assert_array_equal(g_bare, g_off)
+    # without a compiler the step's backward pass runs the same recursion in JAX (jaxskid.runtime._rk4)
+    np.testing.assert_allclose(g_bare, g_off, rtol=1e-11, atol=1e-11 * float(jnp.abs(g_off).max()))

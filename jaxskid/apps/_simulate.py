@@ -34,6 +34,7 @@ from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
 from ..runtime._jit import jit, traced
 from ..runtime._free_flyer import normalize
+from ..runtime._rk4 import held_torque_rk4
 from ..runtime._constrained import Baumgarte
 from ._field import as_controls, constraint_forces, dynamics_field, with_input
 from ._integrators import RK4, fixed_step
@@ -87,9 +88,15 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
 
     rows = controller is None and u is not None  # the torques are the rows of u
     record = not rows and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
+    # open-loop torques on a fixed base: an RK4 step whose backward pass is one native call
+    fused = held_torque_rk4(dyn, batched) if rows and constraints is None and autodiff == "reverse" and \
+        type(integrator) is RK4 else None
 
     def step(carry, u_k):
         k, q, qd, z = carry
+        if fused is not None:
+            q1, qd1 = fused(q, qd, u_k, p, dt)
+            return (k + 1, q1, qd1, z), ()
         (q1, qd1, z1), tau = integrator.step(with_input(f, u_k), k.astype(dt.dtype) * dt, (q, qd, z), dt)
         return (k + 1, normalize(q1, floating), qd1, z1), (tau if record else ())
 

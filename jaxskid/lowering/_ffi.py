@@ -12,7 +12,8 @@ for a result of n^2 or n * 10 n entries, into select chains whose work grows wit
   polynomials; a batch's leading axes broadcast (an input shared by all states is read once);
 * ``jaxskid_fd_vjp(q, qd, qdd, g, p) -> [lambda, -vjp]``, lambda = M(q)^-1 g and
   vjp = lambda^T d ID(q, qd, qdd, p)/d(q, qd, p), from ``mass_matrix``, ``inverse_dynamics_vjp`` and an
-  L D L^T solve (:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation).
+  L D L^T solve (:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation);
+* ``jaxskid_rk4_vjp``, the backward pass of a Runge-Kutta step built on it (:mod:`._ffi_rk4`).
 
 Long functions are split into pieces (:func:`_chunked`): GCC's register allocation is quadratic in a
 function's length. Handlers take float32 or float64 and compute in double. Nothing here knows SymPy: a
@@ -27,6 +28,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
+from ._ffi_rk4 import RK4_BACKWARD
 from ._native import CFLAGS
 
 FFI_CFLAGS = ("-fno-math-errno",)
@@ -388,7 +390,7 @@ def glue_source(native: Mapping) -> tuple[str, bool]:
     lanes = None
     if native.get("backward"):
         lanes = lane_functions(native["source"], stem, ("mass_matrix", "inverse_dynamics_vjp"))
-        parts.append(_BACKWARD.replace("@LANE_FUNCTIONS@", lanes or ""))
+        parts += [_BACKWARD.replace("@LANE_FUNCTIONS@", lanes or ""), RK4_BACKWARD]
     quantities = []
     for name, sizes, cores, n_out, out_rank in native.get("kernels", ()):
         vector = lane_functions(native["source"], stem, (name,), vec="V")

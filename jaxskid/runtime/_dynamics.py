@@ -96,7 +96,7 @@ class Dynamics(QuantitySet):
             build = functools.partial(native, lib)
             self._native_build.update({k[0]: build for k in lib["kernels"]})
             if lib["backward"]:
-                self._native_build["fd_vjp"] = build
+                self._native_build.update(fd_vjp=build, rk4_vjp=build)
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
 
@@ -136,7 +136,8 @@ class Dynamics(QuantitySet):
 
     def native_target(self, name: str = "fd_vjp") -> str | None:
         """The registered XLA FFI target of a native kernel (:mod:`jaxskid.runtime._ffi`): ``"fd_vjp"``, the
-        backward step of forward dynamics, or the name of a quantity with a native kernel (the matrix-valued
+        backward step of forward dynamics, ``"rk4_vjp"``, the backward pass of a Runge-Kutta step built on it
+        (:mod:`jaxskid.runtime._rk4`), or the name of a quantity with a native kernel (the matrix-valued
         ones and forward dynamics). Its library is built on first use; None where there is none (not
         lowered, a quantity without a vector form in C, turned off with ``JAXSKID_NATIVE=0``, or no C
         compiler)."""
@@ -147,6 +148,11 @@ class Dynamics(QuantitySet):
             path = library(build, self.robot_name) if self._native_wanted else None
             self._native_path.update({k: path for k, b in self._native_build.items() if b is build})
         return target(self._native_path[name], name)
+
+    def native_planned(self, name: str) -> bool:
+        """Whether :meth:`native_target` is expected to give a kernel for ``name`` (its library is part of this
+        lowering and native kernels are on), without building it."""
+        return self._native_wanted and name in self._native_build
 
     def generated(self, name: str, batched: bool = True) -> Callable:
         """The generated function of one state as it is, ``f(*state, p)``: what :meth:`raw` wraps, for

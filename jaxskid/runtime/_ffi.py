@@ -126,3 +126,23 @@ def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Call
         return out[:n], out[n:]
 
     return _dispatch(native, fallback)
+
+
+def native_call(target: str, n_out: int, fallback: Callable) -> Callable:
+    """``f(*arrays) -> (n_out,)`` computed by the registered ``target`` on CPU for float32 and float64 (a
+    batch under ``jax.vmap`` goes into the kernel), and by ``fallback`` (the same function in JAX) elsewhere,
+    for other dtypes, and for its derivatives."""
+
+    def native(*args):
+        dtype = jnp.result_type(*args)
+        args = [jnp.asarray(x, dtype) for x in args]
+        return jax.ffi.ffi_call(target, jax.ShapeDtypeStruct((n_out,), dtype), vmap_method="broadcast_all")(*args)
+
+    kernel = _dispatch(native, fallback)
+
+    def call(*args):
+        if jnp.result_type(*args) not in (jnp.float32, jnp.float64):
+            return fallback(*args)
+        return kernel(*args)
+
+    return call

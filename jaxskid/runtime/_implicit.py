@@ -99,13 +99,22 @@ def _forward(solve: Callable, mass: Callable, inverse: Callable) -> Callable:
     return fd
 
 
-def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
-    nq, n = dyn.argument_shape("q")[0], dyn.argument_shape("qd")[0]
+def backward_kernel(mass: Callable, vjp: Callable) -> Callable:
+    """The backward step of forward dynamics in JAX, ``(q, qd, a, g, p) -> (lambda, w)`` with ``lambda = M^-1
+    g`` and ``w = -lambda^T dID/d(q, qd, p)`` (what the native ``fd_vjp`` computes), from a mass solve
+    ``mass(q, p, g)`` (:func:`~jaxskid.runtime._sparse.mass_solver`) and ``inverse_dynamics_vjp``."""
 
     def kernel(q, qd, a, g, p):
         # computed once each: XLA on CPU would fuse them into each of their users (materialize)
         lam = materialize(mass(q, p, g))
         return lam, materialize(-vjp(q, qd, a, lam, p))
+
+    return kernel
+
+
+def _reverse(solve: Callable, mass: Callable, vjp: Callable, dyn) -> Callable:
+    nq, n = dyn.argument_shape("q")[0], dyn.argument_shape("qd")[0]
+    kernel = backward_kernel(mass, vjp)
 
     @jax.custom_vjp
     def fd(q, qd, tau, p):

@@ -1,0 +1,99 @@
+"""The backward pass of one classical Runge-Kutta step of a fixed-base robot under a held torque, as one native
+handler (appended to the backward step's library by :func:`jaxskid.lowering._ffi.glue_source`).
+
+For ``y = (q, qd)``, ``dy/dt = (qd, a(q, qd, tau, p))`` with ``tau`` held over the step, the step is
+``y_1 = y``, ``y_i = y + c_i h k_(i-1)``, ``k_i = (qd_i, a_i)``, ``y+ = y + h sum_i b_i k_i`` (``c = 0, 1/2,
+1/2, 1``, ``b = 1/6, 1/3, 1/3, 1/6``). Given the cotangent ``g`` of ``y+``, the stages are visited from the
+last: ``kbar_i = h b_i g + c_(i+1) h ybar_(i+1)``, and the cotangent of stage i's input is ``ybar_i = J_i^T
+kbar_i``, with ``J_i^T`` from the backward step of forward dynamics (``lambda = M^-1 kbar_i[qd]``, ``-lambda^T
+d ID/d(q, qd, p)``): ``ybar_i = ((da/dq)^T kbar[qd], kbar[q] + (da/dqd)^T kbar[qd])``. The step's cotangents sum
+them: ``ybar = g + sum_i ybar_i``, ``taubar = sum_i lambda_i``, ``pbar = sum_i (da/dp)^T kbar_i[qd]``, and
+``hbar = sum_i b_i g . k_i + sum_(i>1) c_i ybar_i . k_(i-1)``.
+
+``jaxskid_rk4_vjp(q, qd, a, p, h, gq, gqd) -> [ybar_q, ybar_qd, taubar, pbar, hbar]`` takes the four stages'
+``q``, ``qd`` and accelerations as ``(4, n)`` each. In a rollout's gradient it replaces four calls of the
+backward step and the loop over the stages around them (:mod:`jaxskid.runtime._rk4`).
+"""
+
+RK4_BACKWARD = r"""
+#if NQ == N  /* a fixed base: dq/dt = qd */
+#ifndef TLIFT
+#define TLIFT(e) (e)
+#endif
+#define NR (3 * N + NP + 1)
+
+static const double rk4_b[4] = {1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0}, rk4_c[4] = {0.0, 0.5, 0.5, 1.0};
+
+static T dot_n(const T *x, const T *y)
+{
+    T s = TLIFT(0.0);
+    for (int k = 0; k < N; k++) s += x[k] * y[k];
+    return s;
+}
+
+/* One state's step: q, qd, a the four stages' (4 N each); out = [ybar_q, ybar_qd, taubar, pbar, hbar]. */
+static void rk4_backward(const T *q, const T *qd, const T *a, const T *p, T h, const T *gq, const T *gqd, T *out)
+{
+    T *yq = out, *yqd = out + N, *tb = out + 2 * N, *pb = out + 3 * N, *hb = out + 3 * N + NP;
+    T nq[N], nqd[N], kq[N], kqd[N], o[NO];  /* nq, nqd: the cotangent of the next stage's input */
+    for (int k = 0; k < N; k++) yq[k] = gq[k], yqd[k] = gqd[k], tb[k] = TLIFT(0.0), nq[k] = nqd[k] = TLIFT(0.0);
+    for (int k = 0; k < NP; k++) pb[k] = TLIFT(0.0);
+    *hb = TLIFT(0.0);
+    for (int s = 3; s >= 0; s--) {
+        const T wb = h * TLIFT(rk4_b[s]), wc = s < 3 ? h * TLIFT(rk4_c[s + 1]) : TLIFT(0.0);
+        for (int k = 0; k < N; k++) kq[k] = wb * gq[k] + wc * nq[k], kqd[k] = wb * gqd[k] + wc * nqd[k];
+        backward(q + s * N, qd + s * N, a + s * N, kqd, p, o);  /* o = [lambda, (da/d(q, qd, p))^T kqd] */
+        for (int k = 0; k < N; k++) nq[k] = o[N + k], nqd[k] = kq[k] + o[2 * N + k];
+        *hb += TLIFT(rk4_b[s]) * (dot_n(gq, qd + s * N) + dot_n(gqd, a + s * N));
+        if (s > 0) *hb += TLIFT(rk4_c[s]) * (dot_n(nq, qd + (s - 1) * N) + dot_n(nqd, a + (s - 1) * N));
+        for (int k = 0; k < N; k++) yq[k] += nq[k], yqd[k] += nqd[k], tb[k] += o[k];
+        for (int k = 0; k < NP; k++) pb[k] += o[3 * N + k];
+    }
+}
+
+typedef struct {
+    const XLA_FFI_Buffer *in[7];
+    XLA_FFI_Buffer *res;
+    int64_t stride[7], batch;
+} rk4_job;
+
+static const int64_t rk4_size[7] = {4 * N, 4 * N, 4 * N, NP, 1, N, N};
+
+static void rk4_chunk(void *ctx, int64_t c, int slot)
+{
+    (void)slot;
+    const rk4_job *j = (const rk4_job *)ctx;
+    const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
+    T q[4 * N], qd[4 * N], a[4 * N], p[NP1], h[1], gq[N], gqd[N], out[NR];
+    T *w[7] = {q, qd, a, p, h, gq, gqd};
+    for (int64_t b = from; b < to; b += W) {
+        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
+            const int64_t s = b + l < to ? b + l : to - 1;
+            for (int i = 0; i < 7; i++)
+                for (int64_t k = 0; k < rk4_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
+        }
+        rk4_backward(q, qd, a, p, h[0], gq, gqd, out);
+        for (int l = 0; l < W && b + l < to; l++)
+            for (int k = 0; k < NR; k++) store(j->res, (b + l) * NR + k, LANE(out[k], l));
+    }
+}
+
+XLA_FFI_Error *jaxskid_rk4_vjp(XLA_FFI_CallFrame *call)
+{
+    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 7 || call->rets.size != 1)
+        return NULL;
+    rk4_job j;
+    for (int i = 0; i < 7; i++) {
+        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
+        j.stride[i] = numel(j.in[i]) == rk4_size[i] ? 0 : rk4_size[i];  /* one state's: shared by the batch */
+    }
+    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
+    j.batch = numel(j.res) / NR;
+    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
+    parallel_for(call, pool_threads(call, chunks), chunks, rk4_chunk, &j);
+    return NULL;
+}
+#endif
+"""
+"""The C of ``jaxskid_rk4_vjp``, after the backward step's (``backward``, ``NO``, ``load``, ``store``,
+``parallel_for``)."""
