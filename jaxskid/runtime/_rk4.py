@@ -50,18 +50,25 @@ def held_torque_rk4(dyn, batched: bool) -> Callable | None:
         (_, (aq, aqd)), saved = jax.lax.scan(stage, ((zero, zero), (zero, zero)), cb)
         return (q + h * aq, qd + h * aqd), saved
 
-    def recursion(qs, qds, accs, p, h, gq, gqd):  # the native kernel's, in JAX
-        yq, yqd, nq, nqd = gq, gqd, jnp.zeros_like(gq), jnp.zeros_like(gqd)
-        taubar, pbar, hbar = jnp.zeros_like(gq), jnp.zeros_like(p), jnp.zeros_like(h)
-        for s in (3, 2, 1, 0):
-            wc = h * C[s + 1] if s < 3 else 0.0
-            kq, kqd = h * B[s] * gq + wc * nq, h * B[s] * gqd + wc * nqd
-            lam, w = stage_backward(qs[s], qds[s], accs[s], kqd, p)
+    def recursion(qs, qds, accs, p, h, gq, gqd):  # the native kernel's, in JAX: a scan from the last stage
+        def stage(carry, x):
+            nq, nqd, yq, yqd, taubar, pbar, hbar = carry
+            qi, qdi, ai, qd_prev, a_prev, b, c, c_next = x
+            kq, kqd = h * b * gq + h * c_next * nq, h * b * gqd + h * c_next * nqd
+            lam, w = stage_backward(qi, qdi, ai, kqd, p)
             nq, nqd = w[:n], kq + w[n:2 * n]
-            hbar = hbar + B[s] * (gq @ qds[s] + gqd @ accs[s])
-            if s > 0:
-                hbar = hbar + C[s] * (nq @ qds[s - 1] + nqd @ accs[s - 1])
-            yq, yqd, taubar, pbar = yq + nq, yqd + nqd, taubar + lam, pbar + w[2 * n:]
+            hbar = hbar + b * (gq @ qdi + gqd @ ai) + c * (nq @ qd_prev + nqd @ a_prev)
+            return (nq, nqd, yq + nq, yqd + nqd, taubar + lam, pbar + w[2 * n:], hbar), None
+
+        def earlier(x):  # stage i's row holds stage i-1's (zero before the first, where c = 0)
+            return jnp.concatenate([jnp.zeros_like(x[:1]), x[:-1]])
+
+        dtype = gq.dtype
+        xs = (qs, qds, accs, earlier(qds), earlier(accs), jnp.asarray(B, dtype), jnp.asarray(C, dtype),
+              jnp.asarray((*C[1:], 0.0), dtype))
+        zero = jnp.zeros_like(gq)
+        carry = (zero, zero, gq, gqd, zero, jnp.zeros_like(p), jnp.zeros_like(h))
+        (_, _, yq, yqd, taubar, pbar, hbar), _ = jax.lax.scan(stage, carry, xs, reverse=True)
         return jnp.concatenate([yq, yqd, taubar, pbar, hbar[None]])
 
     @jax.custom_vjp
