@@ -117,3 +117,26 @@ def test_a_rollout_gradient_calls_it_once_per_step(dyn):
     e = jnp.zeros_like(p).at[k].set(eps)
     fd = (float(loss(p + e)) - float(loss(p - e))) / (2 * eps)
     assert abs(float(g[k]) - fd) < 1e-6 * max(1.0, abs(fd))
+
+
+def test_checkpointed_rollout_gradient_keeps_less(dyn):
+    """With ``Checkpoint()`` the gradient through open-loop torques (one backward call per step) keeps blocks of
+    steps: at 400 and 1600 steps its temporaries grow about as sqrt(steps), the plain gradient's as steps, and
+    both give the same gradient."""
+    n = dyn.n_dof
+    x0 = jnp.asarray(np.r_[np.full(n, 0.3), np.zeros(n)])
+    temp = {}
+    for steps in (400, 1600):
+        u = jnp.asarray(np.random.default_rng(6).normal(size=(steps, n)))
+        for checkpoint in (None, jaxskid.Checkpoint()):
+            def loss(p):
+                x = jaxskid.rollout(dyn, x0, u, 1e-3, steps, params=p, saveat=jaxskid.SaveAt(t1=True),
+                                    checkpoint=checkpoint).x
+                return jnp.sum(x * x)
+
+            fn = jax.jit(jax.grad(loss), compiler_options=jaxskid.compiler_options()).lower(dyn.param_vector())
+            fn = fn.compile()
+            temp[steps, checkpoint is None] = (fn.memory_analysis().temp_size_in_bytes, fn(dyn.param_vector()))
+        np.testing.assert_allclose(temp[steps, False][1], temp[steps, True][1], rtol=1e-12, atol=0)
+    assert temp[1600, True][0] > 3.5 * temp[400, True][0]  # every step kept: linear
+    assert temp[1600, False][0] < 2.2 * temp[400, False][0]  # blocks of steps: about sqrt
