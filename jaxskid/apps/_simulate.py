@@ -209,10 +209,8 @@ def rollout(
         stepsize_controller: with a diffrax solver, an adaptive diffrax controller
             (``diffrax.PIDController(rtol=1e-8, atol=1e-8)``): the solver chooses its steps from ``dt`` on, and
             array controls stay held over the grid ``t_k = k dt``. ``None``: fixed steps of ``dt``.
-        autodiff: ``"reverse"`` for ``jax.grad`` (closed-form step derivatives, :mod:`jaxskid.runtime._implicit`;
-            under array torques on a fixed base with ``RK4``, each step's backward pass is one native call,
-            :mod:`jaxskid.runtime._rk4`) or ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (as diffrax's
-            ``ForwardMode``; reverse works too).
+        autodiff: ``"reverse"`` for ``jax.grad`` (closed-form step derivatives, :mod:`jaxskid.runtime._implicit`,
+            :mod:`jaxskid.runtime._rk4`) or ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (reverse works too).
         devices: where a batch runs; default ``jax.local_devices()``. With several devices the batch is
             split across them (``jax.shard_map`` over a one-axis mesh; padded to a multiple of their
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
