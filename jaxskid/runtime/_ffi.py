@@ -91,52 +91,17 @@ def _dispatch(native: Callable, fallback: Callable) -> Callable:
     return kernel
 
 
-def native_quantity(target: str, shape: tuple[int, ...], fallback: Callable) -> Callable:
-    """``f(*state, p)``, a quantity of one state of shape ``shape``, computed by the registered ``target``
-    on CPU and by ``fallback`` (the generated JAX function) elsewhere, for other dtypes than float32 and
-    float64, and for derivatives. Under ``jax.vmap`` the batch goes into the kernel; unbatched inputs
-    (the parameters, mostly) are not copied per state."""
+def native_call(target: str, shape, fallback: Callable, vmap_method: str = "broadcast_all") -> Callable:
+    """``f(*arrays)`` of result shape ``shape``, computed by the registered ``target`` on CPU for float32 and
+    float64 (in double), and by ``fallback`` (the same function in JAX) elsewhere, for other dtypes (complex
+    steps) and for derivatives. Under ``jax.vmap`` the batch goes into the kernel; ``vmap_method`` is
+    ``jax.ffi.ffi_call``'s (``"expand_dims"``: unbatched inputs, the parameters mostly, are not copied per
+    state)."""
 
     def native(*args):
         dtype = jnp.result_type(*args)
         args = [jnp.asarray(x, dtype) for x in args]
-        out = jax.ShapeDtypeStruct(shape, dtype)
-        return jax.ffi.ffi_call(target, out, vmap_method="expand_dims")(*args)
-
-    kernel = _dispatch(native, fallback)
-
-    def quantity(*args):
-        if jnp.result_type(*args) not in (jnp.float32, jnp.float64):
-            return fallback(*args)
-        return kernel(*args)
-
-    quantity.__name__ = getattr(fallback, "__name__", "quantity")
-    return quantity
-
-
-def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Callable:
-    """``f(q, qd, qdd, g, p) -> (lambda, -vjp)`` computed by the registered ``target`` on CPU and by
-    ``fallback`` (the same function in JAX) elsewhere; ``n_out`` is the length of ``vjp``. On a machine
-    whose devices are all CPUs the fallback is only traced for a gradient of a gradient."""
-
-    def native(q, qd, a, g, p):
-        dtype = jnp.result_type(q, qd, a, g, p)
-        args = [jnp.asarray(x, dtype) for x in (q, qd, a, g, p)]
-        out = jax.ffi.ffi_call(target, jax.ShapeDtypeStruct((n + n_out,), dtype), vmap_method="broadcast_all")(*args)
-        return out[:n], out[n:]
-
-    return _dispatch(native, fallback)
-
-
-def native_call(target: str, n_out: int, fallback: Callable) -> Callable:
-    """``f(*arrays) -> (n_out,)`` computed by the registered ``target`` on CPU for float32 and float64 (a
-    batch under ``jax.vmap`` goes into the kernel), and by ``fallback`` (the same function in JAX) elsewhere,
-    for other dtypes, and for its derivatives."""
-
-    def native(*args):
-        dtype = jnp.result_type(*args)
-        args = [jnp.asarray(x, dtype) for x in args]
-        return jax.ffi.ffi_call(target, jax.ShapeDtypeStruct((n_out,), dtype), vmap_method="broadcast_all")(*args)
+        return jax.ffi.ffi_call(target, jax.ShapeDtypeStruct(tuple(shape), dtype), vmap_method=vmap_method)(*args)
 
     kernel = _dispatch(native, fallback)
 
@@ -145,4 +110,22 @@ def native_call(target: str, n_out: int, fallback: Callable) -> Callable:
             return fallback(*args)
         return kernel(*args)
 
+    call.__name__ = getattr(fallback, "__name__", "quantity")
     return call
+
+
+def native_quantity(target: str, shape: tuple[int, ...], fallback: Callable) -> Callable:
+    """``f(*state, p)``, a quantity of one state of shape ``shape`` (:func:`native_call`)."""
+    return native_call(target, shape, fallback, vmap_method="expand_dims")
+
+
+def native_backward(target: str, n: int, n_out: int, fallback: Callable) -> Callable:
+    """``f(q, qd, qdd, g, p) -> (lambda, -vjp)`` (:func:`native_call`); ``fallback`` returns the same pair,
+    ``n_out`` is the length of ``vjp``."""
+    flat = native_call(target, (n + n_out,), lambda *args: jnp.concatenate(fallback(*args)))
+
+    def backward(*args):
+        out = flat(*args)
+        return out[:n], out[n:]
+
+    return backward

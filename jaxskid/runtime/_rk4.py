@@ -82,7 +82,7 @@ def held_torque_rk4(dyn, batched: bool) -> Callable | None:
     def bwd(res, g):
         qs, qds, accs, p, h = res
         target = dyn.native_target("rk4_vjp")  # built (or waited for) when the gradient is traced
-        kernel = recursion if target is None else native_call(target, 3 * n + n_params + 1, recursion)
+        kernel = recursion if target is None else native_call(target, (3 * n + n_params + 1,), recursion)
         out = kernel(qs, qds, accs, p, h, *g)
         return out[:n], out[n:2 * n], out[2 * n:3 * n], out[3 * n:3 * n + n_params], out[-1].reshape(jnp.shape(h))
 
