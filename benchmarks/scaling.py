@@ -11,6 +11,10 @@ Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. F
   module, native library and XLA's compilation cache all in a fresh folder);
 - ``jaxskid``: the median time per state of the public function on a batch (``dyn.mass_matrix(q)``,
   ``q`` of shape ``(batch, n)``, float64);
+- ``out=``: the same for a matrix-valued quantity written into an earlier result's memory
+  (``dyn.mass_matrix(q, out=m)``, donated), as Pinocchio writes into its ``data`` at every call: a large
+  batch's result then fills no fresh memory, whose first touch costs the kernel's page clearing (the G1's
+  regressor, 275 MB at batch 4096: see ``benchmarks/memory_floor.py``);
 - ``pinocchio``: the median time per call of Pinocchio's function for the same quantity from Python
   (``rnea``, ``crba``, ``computeCoriolisMatrix``, ``computeJointTorqueRegressor``, ``aba``; for
   ``mass_matrix_dot``, ``computeCoriolisMatrix`` and ``C + C^T``), and the ratio pinocchio / jaxskid
@@ -52,6 +56,9 @@ ROBOTS = {
 }
 QUANTITIES = ("inverse_dynamics", "mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics",
               "mass_matrix_dot")
+MATRICES = {"mass_matrix", "coriolis_matrix", "regressor", "mass_matrix_dot", "mass_matrix_ddot",
+            "coriolis_matrix_dot", "coriolis_matrix_ddot"}
+"""The matrix-valued quantities, also timed written into an earlier result (``out=``)."""
 STATES = {  # the state arrays each quantity takes (tau for forward dynamics)
     "inverse_dynamics": 3, "mass_matrix": 1, "coriolis_matrix": 2, "regressor": 3, "forward_dynamics": 3,
     "mass_matrix_dot": 2, "mass_matrix_ddot": 3, "coriolis_matrix_dot": 3, "coriolis_matrix_ddot": 4,
@@ -115,25 +122,38 @@ def measure(robot_name: str, quantities, batch: int, repeats: int) -> list[dict]
             cold = time.perf_counter() - start
             dyn.native_target()  # the derivatives' library, built at a low priority meanwhile: done before timing
             ours = _median(lambda: jax.block_until_ready(fn(*args)), repeats) / batch
+            reused = _reused_time(fn, args, repeats) / batch if name in MATRICES else None
         theirs = _pinocchio_time(pin_calls[name], states, repeats) if name in pin_calls else None
         if name == "mass_matrix":
             mass_time = ours
         rows.append({"robot": robot_name, "n_dof": n, "quantity": name, "cold": cold, "jaxskid": ours,
-                     "pinocchio": theirs, "mass_matrix": mass_time})
+                     "reused": reused, "pinocchio": theirs, "mass_matrix": mass_time})
         _print_row(rows[-1])
     return rows
 
 
+def _reused_time(fn, args, repeats: int) -> float:
+    """The median time of ``fn(*args, out=previous result)``: each call writes into the last one's memory."""
+    last = [jax.block_until_ready(fn(*args))]
+
+    def call():
+        last[0] = jax.block_until_ready(fn(*args, out=last[0]))
+
+    return _median(call, repeats)
+
+
 def _print_row(row: dict) -> None:
-    theirs = row["pinocchio"]
+    theirs, reused = row["pinocchio"], row["reused"]
     if theirs is not None:
         peer = f"{theirs * 1e6:.2f} µs | {theirs / row['jaxskid']:.1f}x"
+        into = f"{reused * 1e6:.2f} µs ({theirs / reused:.1f}x)" if reused else "-"
     elif row["mass_matrix"]:
         peer = f"- | {row['jaxskid'] / row['mass_matrix']:.1f}x M's cost"
+        into = f"{reused * 1e6:.2f} µs" if reused else "-"
     else:
-        peer = "- | -"
+        peer, into = "- | -", "-"
     print(f"| {row['robot']} | {row['n_dof']} | {row['quantity']} | {row['cold']:.1f} s "
-          f"| {row['jaxskid'] * 1e6:.2f} µs | {peer} |", flush=True)
+          f"| {row['jaxskid'] * 1e6:.2f} µs | {into} | {peer} |", flush=True)
 
 
 def plot(rows: list[dict], out: Path) -> None:
@@ -207,8 +227,9 @@ def main() -> None:
         parser.error(f"--quantities: choose from {', '.join(STATES)}")
     print(f"jax {jax.__version__} on {jax.default_backend()}, Pinocchio {pin.__version__}, float64, batch {args.batch}, "
           f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}, sine and cosine {args.trig}")
-    print("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | Pinocchio per call | ratio |")
-    print("|---|---|---|---|---|---|---|")
+    print("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | with out= (ratio) "
+          "| Pinocchio per call | ratio |")
+    print("|---|---|---|---|---|---|---|---|")
     rows = []
     for robot in args.robots.split(","):
         rows += measure(robot, quantities, args.batch, args.repeats)

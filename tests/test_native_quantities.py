@@ -103,6 +103,68 @@ def test_against_pinocchio_with_per_state_parameters(panda):
                                atol=1e-12)
 
 
+def test_result_into_an_earlier_result(panda):
+    """``out=``: the kernel writes into an earlier result's memory (donated), the values Pinocchio gives."""
+    robot, dyn = panda
+    model = pinocchio_urdf_model(PANDA, FINGERS)
+    data = model.createData()
+    q, qd, qdd = _states(dyn.n_dof, (2, 70), seed=5)  # two batch axes, more than one chunk
+    first = dyn.regressor(q, qd, qdd)
+    address = first.unsafe_buffer_pointer()
+    q, qd, qdd = _states(dyn.n_dof, (2, 70), seed=6)
+    y = dyn.regressor(q, qd, qdd, out=first)
+    assert first.is_deleted() and y.unsafe_buffer_pointer() == address  # the same memory, no fresh result
+    for i, k in [(0, 0), (1, 69), (0, 33)]:
+        ref = pin.computeJointTorqueRegressor(model, data, *(np.asarray(x[i, k]) for x in (q, qd, qdd)))
+        np.testing.assert_allclose(y[i, k], ref, atol=1e-10)
+    # one state, float32, parameters given: as without out
+    q1 = q[0, 0].astype(jnp.float32)
+    p = dyn.param_vector().astype(jnp.float32) * 1.5
+    m = dyn.mass_matrix(q1, p, out=jnp.full((dyn.n_dof, dyn.n_dof), jnp.nan, jnp.float32))
+    assert m.dtype == jnp.float32
+    np.testing.assert_allclose(m, 1.5 * pin.crba(model, data, np.asarray(q[0, 0])), rtol=2e-5, atol=2e-5)
+
+
+def test_result_into_out_inside_a_trace_and_a_gradient(arm):
+    """In the caller's jit (which donates it or not) and under grad, ``out`` changes nothing but memory."""
+    robot, dyn = arm
+    q = _states(dyn.n_dof, (8,), count=1)[0]
+    ref = dyn.mass_matrix(q)
+    mine = jax.jit(lambda q, o: dyn.mass_matrix(q, out=o), donate_argnums=1)(q, jnp.zeros_like(ref))
+    np.testing.assert_allclose(mine, ref, rtol=1e-14, atol=1e-14)
+    p = dyn.param_vector()
+
+    def loss(p, out=None):
+        return jnp.sum(dyn.mass_matrix(q, p, out=out) ** 2)
+
+    np.testing.assert_allclose(jax.grad(loss)(p, jnp.zeros_like(ref)), jax.grad(loss)(p), rtol=1e-12)
+
+
+def test_result_into_out_without_native_kernels(arm, monkeypatch):
+    """The JAX form (off CPU, or switched off) takes out's memory by donation alone."""
+    robot, dyn = arm
+    monkeypatch.setenv("JAXSKID_NATIVE", "0")
+    off = jaxskid.lower(robot, quantities=["mass_matrix"])
+    q = _states(dyn.n_dof, (16,), count=1)[0]
+    first = off.mass_matrix(q)
+    address = first.unsafe_buffer_pointer()
+    m = off.mass_matrix(2 * q, out=first)
+    assert first.is_deleted() and m.unsafe_buffer_pointer() == address
+    np.testing.assert_allclose(m, dyn.mass_matrix(2 * q), rtol=1e-12, atol=1e-13)
+
+
+@pytest.mark.parametrize("out, expected", [
+    (np.zeros((4, 3, 3)), "expected a JAX array"),
+    (jnp.zeros((4, 3, 4)), r"expected float64\[4, 3, 3\]"),
+    (jnp.zeros((4, 3, 3), jnp.float32), r".*got float32\[4, 3, 3\]"),
+])
+def test_result_into_the_wrong_out(arm, out, expected):
+    robot, dyn = arm
+    q = _states(dyn.n_dof, (4,), count=1)[0]
+    with pytest.raises(jaxskid.ShapeError, match=r"mass_matrix: out: " + expected):
+        dyn.mass_matrix(q, out=out)
+
+
 def test_user_vmaps_nested_and_partly_batched(arm):
     robot, dyn = arm
     assert dyn.native_target("coriolis_matrix") is not None

@@ -212,8 +212,8 @@ static void states(void *ctx, int64_t c, int slot)
 static XLA_FFI_Error *run(XLA_FFI_CallFrame *call, int n_in, const int64_t *size, const int64_t *core,
                           int64_t n_out, int64_t out_rank, kernel fn, const int32_t *nz, int64_t n_nz)
 {
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != n_in
-        || call->rets.size != 1 || n_in > MAX_IN)
+    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE
+        || (call->args.size != n_in && call->args.size != n_in + 1) || call->rets.size != 1 || n_in > MAX_IN)
         return NULL;
     batch_job j = {.n_in = n_in, .size = size, .n_out = n_out, .fn = fn, .nz = nz, .n_nz = n_nz};
     j.res = (XLA_FFI_Buffer *)call->rets.rets[0];

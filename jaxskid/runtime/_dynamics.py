@@ -46,6 +46,13 @@ def _traced_once(fn: Callable, name: str | None = None) -> Callable:
     return jitted
 
 
+def _check_out(name: str, out, shape: tuple, dtype) -> None:
+    """``out`` of a call: the result's shape and dtype."""
+    if tuple(out.shape) != tuple(shape) or out.dtype != dtype:
+        raise ShapeError(f"{name}: out: expected {jnp.dtype(dtype).name}{list(shape)} (the result's shape and dtype), "
+                         f"got {out.dtype.name}{list(out.shape)}")
+
+
 def _plain(body: Callable, same: Callable, *args):
     return body(*args, same)
 
@@ -204,10 +211,17 @@ class Dynamics(QuantitySet):
         cores = {a: self.argument_shape(a) for a in args}
         n_params = (len(self.parameters),)
 
-        def call(*state, params=None, pair=False):
+        def call(*state, params=None, pair=False, out=None):
             arrays, dtype = float_arrays(state)
             p = param_array(self.layout, params, dtype)
             batch = batch_shape(name, [(a, x.shape, cores[a]) for a, x in zip(args, arrays)], [("params", p.shape, n_params)])
+            if out is not None:
+                _check_out(name, out, (*batch, *shape), dtype)
+                if native is not None and not batch:  # the kernel writes into it
+                    return plain(*arrays, p, out=out)
+                if native is not None:  # (the JAX form takes its memory by donation alone)
+                    return vmapped(lambda *a: raw(*a[:-1], out=a[-1]), batch,
+                                   [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1), (out, len(shape))])
             if not batch and pair and native is None:
                 # One state alone: XLA turns the broadcast inputs back into scalars and splits the function
                 # into a kernel per shared value (20 for the Panda's mass matrix: 117 us a call on 2
@@ -223,8 +237,8 @@ class Dynamics(QuantitySet):
             return call
         frames = self.frame_names
 
-        def call_fk(*state, params=None, pair=False):
-            poses = call(*state, params=params, pair=pair)
+        def call_fk(*state, params=None, pair=False, out=None):
+            poses = call(*state, params=params, pair=pair, out=out)
             return {f: poses[..., k, :, :] for k, f in enumerate(frames)}
 
         return call_fk
@@ -233,11 +247,12 @@ class Dynamics(QuantitySet):
         args, shape = self.signature(name)
         body = self._evaluate(name)
         compiled = outermost(functools.partial(body, pair=True), body)
+        into = outermost(functools.partial(body, pair=True), body, donate_argnames="out", keep_unused=True)
         takes_wrench = name == "inverse_dynamics"
 
-        call = f"{name}({', '.join(args)}, params=None{', *, wrench=None' if takes_wrench else ''})"
+        call = f"{name}({', '.join(args)}, params=None, *{', wrench=None' if takes_wrench else ''}, out=None)"
 
-        def fn(*state, params=None, wrench=None):
+        def fn(*state, params=None, wrench=None, out=None):
             if len(state) == len(args) + 1 and params is None:
                 *state, params = state
             if len(state) != len(args):
@@ -248,15 +263,24 @@ class Dynamics(QuantitySet):
                 self._check_not_a_wrench(name, params, call)
             if params is not None:  # None stays: the defaults become constants of the compiled program
                 params = self._packed(params)
-            out = compiled(*state, params=params)
+            if out is None:
+                result = compiled(*state, params=params)
+            elif not isinstance(out, jax.Array):
+                raise ShapeError(f"{name}: out: expected a JAX array (an earlier result of {name}, whose memory "
+                                 f"the result takes), got {type(out).__name__}")
+            else:
+                result = into(*state, params=params, out=out)
             if wrench is not None:
-                out = out + self.external_torques(state[0], wrench, params)
-            return out
+                result = result + self.external_torques(state[0], wrench, params)
+            return result
 
         fn.__name__ = name
         fn.__doc__ = (
             f"{call} -> {tuple(shape)}"
             f"\n\n{self._meta[name]['equation']}: {self._meta[name]['doc']}"
+            f"\n\n``out``: an earlier result of the same shape and dtype, whose memory the result takes (it is"
+            f" donated: deleted after the call; use the returned array). A large batch's result then fills no"
+            f" fresh memory. Its entries are not read."
         )
         return fn
 

@@ -92,23 +92,33 @@ def _dispatch(native: Callable, fallback: Callable) -> Callable:
 
 
 def native_call(target: str, shape, fallback: Callable, vmap_method: str = "broadcast_all") -> Callable:
-    """``f(*arrays)`` of result shape ``shape``, computed by the registered ``target`` on CPU for float32 and
-    float64 (in double), and by ``fallback`` (the same function in JAX) elsewhere, for other dtypes (complex
-    steps) and for derivatives. Under ``jax.vmap`` the batch goes into the kernel; ``vmap_method`` is
+    """``f(*arrays, out=None)`` of result shape ``shape``, computed by the registered ``target`` on CPU for
+    float32 and float64 (in double), and by ``fallback`` (the same function in JAX) elsewhere, for other dtypes
+    (complex steps) and for derivatives. Under ``jax.vmap`` the batch goes into the kernel; ``vmap_method`` is
     ``jax.ffi.ffi_call``'s (``"expand_dims"``: unbatched inputs, the parameters mostly, are not copied per
-    state)."""
+    state). ``out``, an array of the result's shape and dtype, is where the kernel writes (XLA's
+    ``input_output_aliases``): in a program that donates it, the result takes its memory, and no fresh
+    memory is filled; its entries are not read."""
 
     def native(*args):
+        *args, out = args
         dtype = jnp.result_type(*args)
         args = [jnp.asarray(x, dtype) for x in args]
-        return jax.ffi.ffi_call(target, jax.ShapeDtypeStruct(tuple(shape), dtype), vmap_method=vmap_method)(*args)
+        result = jax.ShapeDtypeStruct(tuple(shape), dtype)
+        if out is None:
+            return jax.ffi.ffi_call(target, result, vmap_method=vmap_method)(*args)
+        aliased = jax.ffi.ffi_call(target, result, vmap_method=vmap_method, input_output_aliases={len(args): 0})
+        return aliased(*args, out.astype(dtype))
 
-    kernel = _dispatch(native, fallback)
+    def plain(*args):
+        return fallback(*args[:-1])
 
-    def call(*args):
+    kernel = _dispatch(native, plain)
+
+    def call(*args, out=None):
         if jnp.result_type(*args) not in (jnp.float32, jnp.float64):
             return fallback(*args)
-        return kernel(*args)
+        return kernel(*args, out)
 
     call.__name__ = getattr(fallback, "__name__", "quantity")
     return call

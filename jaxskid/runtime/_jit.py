@@ -32,9 +32,10 @@ def traced(tree) -> bool:
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(tree))
 
 
-def outermost(top: Callable, nested: Callable, **jit_kwargs) -> Callable:
+def outermost(top: Callable, nested: Callable, donate_argnames=None, **jit_kwargs) -> Callable:
     """Call ``top`` jitted with :func:`compiler_options` from Python, ``nested`` plainly jitted inside a
-    caller's trace (JAX accepts compiler options only on a top-level jit)."""
+    caller's trace (JAX accepts compiler options only on a top-level jit, and donates buffers only there:
+    ``donate_argnames`` applies to ``top``)."""
     nested_jit = jax.jit(nested, **jit_kwargs)
     top_jit: list = []  # compiled on first use: compiler_options() asks for the backend
 
@@ -42,7 +43,8 @@ def outermost(top: Callable, nested: Callable, **jit_kwargs) -> Callable:
         if traced((args, kwargs)):
             return nested_jit(*args, **kwargs)
         if not top_jit:
-            top_jit.append(jax.jit(top, compiler_options=compiler_options(), **jit_kwargs))
+            top_jit.append(jax.jit(top, compiler_options=compiler_options(), donate_argnames=donate_argnames,
+                                   **jit_kwargs))
         return top_jit[0](*args, **kwargs)
 
     return call
