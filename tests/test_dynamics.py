@@ -259,10 +259,10 @@ def test_the_wrench_is_keyword_only(pendulum):
     np.testing.assert_allclose(np.asarray(dyn.inverse_dynamics(q, qd, qdd, p, wrench=w)), expected, rtol=1e-13)
     np.testing.assert_allclose(np.asarray(dyn.inverse_dynamics(q, qd, qdd, params=p, wrench=w)), expected, rtol=1e-13)
     with pytest.raises(jaxskid.ShapeError, match=r"shape of the end-effector wrenches.*by keyword.*"
-                                                  r"inverse_dynamics\(q, qd, qdd, params=None, \*, wrench=None\)"):
+                                                  r"inverse_dynamics\(q, qd, qdd, params=None, \*, wrench=None, out=None\)"):
         dyn.inverse_dynamics(q, qd, qdd, w)
     with pytest.raises(jaxskid.ShapeError, match=r"expected inverse_dynamics\(q, qd, qdd, params=None, \*, "
-                                                  r"wrench=None\), got 5 positional"):
+                                                  r"wrench=None, out=None\), got 5 positional"):
         dyn.inverse_dynamics(q, qd, qdd, p, w)
     with pytest.raises(jaxskid.ShapeError, match="mass_matrix takes no wrench"):
         dyn.mass_matrix(q, wrench=w)
