@@ -22,6 +22,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -58,7 +59,7 @@ class Case:
                 "tau": rng.uniform(-5, 5, n), "wrench": rng.uniform(-1, 1, (n_ee, 6)),
             })
         self.params = np.array([self.robot.default_params()[k] for k in self.eqs.parameters])
-        self.ref = {name: [self.jax(name, s) for s in self.states] for name in self.names}
+        self.ref = {name: list(self.jax(name)) for name in self.names}
         self.files: dict[str, list[Path]] = {}
 
     def generate(self) -> None:
@@ -69,11 +70,14 @@ class Case:
     def args(self, name: str) -> tuple[str, ...]:
         return self.eqs.quantities[name].args
 
-    def jax(self, name: str, state: dict) -> np.ndarray:
-        """The lowered JAX function, run op by op: the same code as the jitted one, without its compile
-        time (jit-compiling the Panda's 49-output Coriolis matrix alone takes about 10 s)."""
+    def jax(self, name: str) -> np.ndarray:
+        """The lowered JAX function at every state, mapped and run op by op: the same code as the jitted one,
+        without its compile time (jit-compiling the Panda's 49-output Coriolis matrix alone takes about 10 s;
+        its ops one by one, for the states together, well under one)."""
         p = self.dyn.param_vector()
-        return np.asarray(self.dyn.raw(name)(*(jnp.asarray(state[a]) for a in self.args(name)), p))
+        args = [jnp.asarray(np.stack([s[a] for s in self.states])) for a in self.args(name)]
+        with jax.disable_jit():  # raw functions are jitted: run them op by op all the same
+            return np.asarray(jax.vmap(self.dyn.raw(name), in_axes=(*[0] * len(args), None))(*args, p))
 
 
 def close(got, ref, what: str) -> None:
