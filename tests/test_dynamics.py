@@ -143,7 +143,7 @@ def test_grad_wrt_inertial_parameters_matches_finite_differences(panda_tau):
     def loss(p):
         return jnp.sum((dyn.inverse_dynamics(q, qd, qdd, p) - target) ** 2)
 
-    grad = jax.grad(loss)(params)
+    grad = jax.jit(jax.grad(loss))(params)  # one program: called eagerly, JAX compiles its two halves apart (2x slower)
     assert all(np.isfinite(float(v)) for v in grad.values())
     loss = jax.jit(loss)  # the differences: one compiled program, called twice per parameter
     for name in dyn.parameters:
