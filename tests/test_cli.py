@@ -15,6 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pinocchio as pin
@@ -68,8 +69,9 @@ def one_line_error(proc, rc: int, *fragments: str) -> str:
 
 
 def raw(dyn, name, *state):
-    """The lowered JAX function, op by op (no jit compile)."""
-    return np.asarray(dyn.raw(name)(*(jnp.asarray(s) for s in state), dyn.param_vector()))
+    """The lowered JAX function, op by op (no jit compile: ``dyn.raw`` is jitted, so jit is turned off)."""
+    with jax.disable_jit():
+        return np.asarray(dyn.raw(name)(*(jnp.asarray(s) for s in state), dyn.param_vector()))
 
 
 def pinocchio_dynamics(robot, q, qd, qdd):
