@@ -272,8 +272,9 @@ def test_unknown_dtype_takes_the_jax_form(panda):
 
 @pytest.mark.slow
 def test_g1_29dof_against_pinocchio():
-    """The 29-DOF humanoid: M, C, the regressor and forward dynamics of the native kernels against Pinocchio at
-    1e-9 (relative to the largest acceleration for forward dynamics)."""
+    """The 29-DOF humanoid: M, C, the regressor (written into an earlier result, ``out=``) and forward dynamics
+    of the native kernels against Pinocchio at 1e-9 (relative to the largest acceleration for forward
+    dynamics)."""
     robot = jaxskid.read_urdf(G1)
     dyn = jaxskid.lower(robot, quantities=["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"])
     for name in ("mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"):
@@ -282,7 +283,8 @@ def test_g1_29dof_against_pinocchio():
     data = model.createData()
     assert model.nv == robot.n_dof == 29
     q, qd, qdd = (np.asarray(x) for x in _states(robot.n_dof, (8,), seed=1))
-    m, c, y = dyn.mass_matrix(q), dyn.coriolis_matrix(q, qd), dyn.regressor(q, qd, qdd)
+    m, c = dyn.mass_matrix(q), dyn.coriolis_matrix(q, qd)
+    y = dyn.regressor(q, qd, qdd, out=dyn.regressor(qd, qdd, q))  # written into another result's memory
     for k in range(len(q)):
         m_ref = pin.crba(model, data, q[k])
         m_ref = np.triu(m_ref) + np.triu(m_ref, 1).T
