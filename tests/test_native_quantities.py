@@ -165,6 +165,17 @@ def test_result_into_the_wrong_out(arm, out, expected):
         dyn.mass_matrix(q, out=out)
 
 
+def test_result_into_a_deleted_out_or_an_input(arm):
+    robot, dyn = arm
+    q, qd = _states(dyn.n_dof, (4,), count=2)
+    m = dyn.mass_matrix(q)
+    dyn.mass_matrix(q, out=m)
+    with pytest.raises(jaxskid.ShapeError, match=r"mass_matrix: out: the array was deleted .* pass the array that"):
+        dyn.mass_matrix(q, out=m)
+    with pytest.raises(jaxskid.ShapeError, match=r"coriolis_matrix: out: the array is also an input"):
+        dyn.coriolis_matrix(q, qd, out=qd)
+
+
 def test_user_vmaps_nested_and_partly_batched(arm):
     robot, dyn = arm
     assert dyn.native_target("coriolis_matrix") is not None

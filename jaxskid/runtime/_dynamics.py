@@ -53,6 +53,22 @@ def _check_out(name: str, out, shape: tuple, dtype) -> None:
                          f"got {out.dtype.name}{list(out.shape)}")
 
 
+def _check_donated(name: str, out, inputs) -> None:
+    """``out`` of a call from Python: a JAX array that is not deleted and not one of the call's inputs
+    (JAX's own errors for these come from deep inside its runtime)."""
+    if not isinstance(out, jax.Array):
+        raise ShapeError(f"{name}: out: expected a JAX array (an earlier result of {name}, whose memory the result "
+                         f"takes), got {type(out).__name__}")
+    if isinstance(out, jax.core.Tracer):
+        return
+    if out.is_deleted():
+        raise ShapeError(f"{name}: out: the array was deleted (donated to an earlier call as out, or deleted by "
+                         f"you); pass the array that call returned")
+    if any(x is out for x in jax.tree_util.tree_leaves(inputs)):
+        raise ShapeError(f"{name}: out: the array is also an input of this call; its memory cannot be both read "
+                         f"and written: pass an earlier result")
+
+
 def _plain(body: Callable, same: Callable, *args):
     return body(*args, same)
 
@@ -265,10 +281,8 @@ class Dynamics(QuantitySet):
                 params = self._packed(params)
             if out is None:
                 result = compiled(*state, params=params)
-            elif not isinstance(out, jax.Array):
-                raise ShapeError(f"{name}: out: expected a JAX array (an earlier result of {name}, whose memory "
-                                 f"the result takes), got {type(out).__name__}")
             else:
+                _check_donated(name, out, (*state, params))
                 result = into(*state, params=params, out=out)
             if wrench is not None:
                 result = result + self.external_torques(state[0], wrench, params)
