@@ -5,7 +5,8 @@ function takes the state arrays of its quantity (shape ``(n,)``, or ``(..., n)``
 mapped with ``jax.vmap``), then ``params``: ``None`` for the defaults, a dict name -> value (missing names
 take their defaults; a pytree, so ``jax.grad`` with respect to it works), or a vector in the order of
 :attr:`Dynamics.parameters`. Leading axes of the parameters are a batch too: they broadcast against the
-states' (``dyn.mass_matrix(q_batch, p_batch)``).
+states' (``dyn.mass_matrix(q_batch, p_batch)``). ``out=``, an earlier result of the same shape and dtype,
+gives the result its memory (donated: deleted after the call), so a large batch fills no fresh memory.
 """
 
 from __future__ import annotations
