@@ -167,12 +167,16 @@ def plot(rows: list[dict], out: Path) -> None:
     names = list(dict.fromkeys(r["quantity"] for r in rows))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, name in enumerate(names):
-        mine = sorted((r["n_dof"], r["jaxskid"], r["pinocchio"]) for r in rows if r["quantity"] == name)
+        mine = sorted((r["n_dof"], r["jaxskid"], r["pinocchio"], r.get("reused")) for r in rows if r["quantity"] == name)
         dofs = [m[0] for m in mine]
         color = colors[k % len(colors)]
         ax.plot(dofs, [1e6 * m[1] for m in mine], "o-", color=color, label=f"{name} (jaxskid)")
+        if all(m[3] is not None for m in mine):
+            ax.plot(dofs, [1e6 * m[3] for m in mine], "^:", color=color, alpha=0.8)
         if all(m[2] is not None for m in mine):
             ax.plot(dofs, [1e6 * m[2] for m in mine], "s--", color=color, alpha=0.6, label=f"{name} (Pinocchio)")
+    if any(r.get("reused") for r in rows):
+        ax.plot([], [], "^:", color="0.4", label="jaxskid, out= (written into the last result)")
     ax.set_xscale("log")
     ax.set_yscale("log")
     dofs = sorted({r["n_dof"] for r in rows})
