@@ -234,9 +234,11 @@ class Dynamics(QuantitySet):
             batch = batch_shape(name, [(a, x.shape, cores[a]) for a, x in zip(args, arrays)], [("params", p.shape, n_params)])
             if out is not None:
                 _check_out(name, out, (*batch, *shape), dtype)
-                if native is not None and not batch:  # the kernel writes into it
+                # The native kernel writes into it. The JAX form does not take it: the outermost jit donates
+                # it, and XLA gives its memory to the result of the same shape.
+                if native is not None and not batch:
                     return plain(*arrays, p, out=out)
-                if native is not None:  # (the JAX form takes its memory by donation alone)
+                if native is not None:
                     return vmapped(lambda *a: raw(*a[:-1], out=a[-1]), batch,
                                    [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1), (out, len(shape))])
             if not batch and pair and native is None:
