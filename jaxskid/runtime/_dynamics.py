@@ -265,8 +265,9 @@ class Dynamics(QuantitySet):
     def _make(self, name: str) -> Callable:
         args, shape = self.signature(name)
         body = self._evaluate(name)
-        compiled = outermost(functools.partial(body, pair=True), body)
-        into = outermost(functools.partial(body, pair=True), body, donate_argnames="out", keep_unused=True)
+        # out (None or an earlier result) is donated, and kept though the JAX form does not read it, so that
+        # XLA gives its memory to the result
+        compiled = outermost(functools.partial(body, pair=True), body, donate_argnames="out", keep_unused=True)
         takes_wrench = name == "inverse_dynamics"
 
         call = f"{name}({', '.join(args)}, params=None, *{', wrench=None' if takes_wrench else ''}, out=None)"
@@ -282,11 +283,9 @@ class Dynamics(QuantitySet):
                 self._check_not_a_wrench(name, params, call)
             if params is not None:  # None stays: the defaults become constants of the compiled program
                 params = self._packed(params)
-            if out is None:
-                result = compiled(*state, params=params)
-            else:
+            if out is not None:
                 _check_donated(name, out, (*state, params))
-                result = into(*state, params=params, out=out)
+            result = compiled(*state, params=params, out=out)
             if wrench is not None:
                 result = result + self.external_torques(state[0], wrench, params)
             return result
