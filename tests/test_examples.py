@@ -105,3 +105,13 @@ def test_blog_3link(tmp_path):
     compiled = subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", "-pedantic", "-c", "-o", str(tmp_path / "blog.o"),
                                str(source)], capture_output=True, text=True)
     assert compiled.returncode == 0, compiled.stderr
+
+
+@pytest.mark.slow
+def test_learn_gains(tmp_path):
+    """A policy closing over the traced gains and a module-level initial state: the gradient agrees with
+    central differences and Adam lowers the tracking loss."""
+    out = load("learn_gains").main(tmp_path, iterations=20)
+    assert out["gradient_error"] < 1e-6
+    assert out["losses"][-1] < 0.6 * out["losses"][0]
+    assert np.all(out["kp"] > 0) and np.all(out["kd"] > 0) and out["file"].exists()

@@ -32,7 +32,7 @@ from ..runtime._batching import batch_shape, float_arrays
 from ..runtime._dynamics import Dynamics
 from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
-from ..runtime._jit import jit, traced
+from ..runtime._jit import forward_mode, jit, traced
 from ..runtime._free_flyer import normalize
 from ..runtime._rk4 import held_torque_rk4
 from ..runtime._constrained import Baumgarte
@@ -180,7 +180,7 @@ def rollout(
     saveat: SaveAt | None = None,
     checkpoint: Checkpoint | None = None,
     stepsize_controller=None,
-    autodiff: str = "reverse",
+    autodiff: str = "auto",
     devices: Sequence[jax.Device] | None = None,
     stabilization: Baumgarte | None = Baumgarte(), regularization: float = 0.0,  # noqa: B008  (frozen dataclass)
 ) -> Trajectory:
@@ -210,7 +210,10 @@ def rollout(
             (``diffrax.PIDController(rtol=1e-8, atol=1e-8)``): the solver chooses its steps from ``dt`` on, and
             array controls stay held over the grid ``t_k = k dt``. ``None``: fixed steps of ``dt``.
         autodiff: ``"reverse"`` for ``jax.grad`` (closed-form step derivatives, :mod:`jaxskid.runtime._implicit`,
-            :mod:`jaxskid.runtime._rk4`) or ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (reverse works too).
+            :mod:`jaxskid.runtime._rk4`), ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (``jax.grad`` works too,
+            slower), or ``"auto"`` (the default): ``"forward"`` where the innermost differentiation around the
+            call is forward mode (``jax.jvp``, ``jax.jacfwd``), ``"reverse"`` otherwise (``jax.grad``,
+            ``jax.vjp``, ``jax.hessian``, and no differentiation at all).
         devices: where a batch runs; default ``jax.local_devices()``. With several devices the batch is
             split across them (``jax.shard_map`` over a one-axis mesh; padded to a multiple of their
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
@@ -220,12 +223,16 @@ def rollout(
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
 
-    ``rollout`` is traceable: ``jax.vmap``, ``jax.grad`` and ``jax.jit`` apply to it; a batch is one
-    compiled call that maps the single rollout (measured no slower than ``jax.vmap`` of single rollouts).
+    ``rollout`` is traceable: ``jax.vmap``, ``jax.grad``, ``jax.jacfwd``, ``jax.hessian`` and ``jax.jit``
+    apply to it in any composition, and ``controls`` may close over values those transformations trace (the
+    gains being learnt, the parameters being identified); a batch is one compiled call that maps the single
+    rollout (measured no slower than ``jax.vmap`` of single rollouts).
     """
     require_solver(dyn, "rollout")
     steps = _steps(steps)
     saveat = _check_choices(saveat, checkpoint, autodiff)
+    if autodiff == "auto":
+        autodiff = "forward" if forward_mode() else "reverse"
     integrator = _stepping(integrator, stepsize_controller)
     controller, u = as_controls(controls)
     arrays, dtype = float_arrays([x0] if u is None else [x0, u])
@@ -270,8 +277,9 @@ def _check_choices(saveat, checkpoint, autodiff) -> SaveAt:
     """The rollout's ``saveat`` (``None``: :class:`SaveAt`), ``checkpoint`` and ``autodiff`` checked; returns
     ``saveat``."""
     saveat = SaveAt() if saveat is None else saveat
-    if autodiff not in AUTODIFF:
-        raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, AUTODIFF))}, got {autodiff!r}")
+    if autodiff not in (*AUTODIFF, "auto"):
+        raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, (*AUTODIFF, 'auto')))}, "
+                           f"got {autodiff!r}")
     if not isinstance(saveat, SaveAt):
         got = f"{type(saveat).__module__.split('.')[0]}.{type(saveat).__name__}"
         raise RequestError(f"rollout: saveat: expected a jaxskid.SaveAt (diffrax solvers too), got {got}")

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
 from ._ffi import native_quantity
-from ._jit import jit, traced
+from ._jit import jit, top_level, traced
 from ._implicit import differentiable
 from ._ldl import materialize
 from ._parameters import param_array
@@ -135,7 +135,7 @@ def forward_dynamics(dyn, q, qd, tau, params=None, *, wrench=None) -> jax.Array:
     params = dyn._packed(params)
     # Called from Python without a wrench: the native kernel, where there is one. Inside a caller's trace
     # (a rollout, a user's loop) the JAX form stays, which XLA fuses with the rest of the program.
-    native = None if wrench is not None or traced((q, qd, tau, params)) else dyn.native_target("forward_dynamics")
+    native = None if wrench is not None or not top_level((q, qd, tau, params)) else dyn.native_target("forward_dynamics")
     return _forward_dynamics(dyn, q, qd, tau, params, wrench, native=native)
 
 
