@@ -10,7 +10,8 @@ import importlib
 from typing import TYPE_CHECKING
 
 from ._errors import (
-    DescriptionWarning, IdentificationError, IdentificationWarning, JaxskidError, ModelError, RequestError, ShapeError,
+    DescriptionWarning, IdentificationError, IdentificationWarning, InputError, JaxskidError, ModelError,
+    PhysicalConsistencyWarning, RequestError, ShapeError,
 )
 from ._version import __version__
 from ._xla_flags import prefer_classic_emitters
@@ -145,6 +146,8 @@ __all__ = [
     "constrained_forward_dynamics",
     "constrained_inverse_dynamics",
     "ModelError",
+    "InputError",
+    "PhysicalConsistencyWarning",
     "NativeDynamics",
     "Options",
     "RequestError",

@@ -19,7 +19,9 @@ from .lowering._xla_cache import default_compilation_cache
 from .lowering._ffi_build import ffi_library, ffi_library_soon
 from .lowering._extension import Method
 from .lowering._native import build, default_backend
+from .model._inertia_check import check_inertias
 from .model._robot import Robot
+from .model._standard import body_standard_map
 from .runtime._dynamics import Dynamics
 from .runtime._ffi import enabled as native_enabled
 from .runtime._native import NativeDynamics
@@ -43,13 +45,17 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, dr
     if ext == ".urdf":
         from .description._urdf import read_urdf
 
-        return read_urdf(p, lock=lock, drives=drives, **options)
+        robot = read_urdf(p, lock=lock, drives=drives, **options)
+        check_inertias(robot, str(p), lambda i: f"link {robot.joints[i].link!r} <inertial>")
+        return robot
     if ext in (".yaml", ".yml", ".json"):
         from .description._yaml_schema import read_description
 
         if options:
             raise ModelError(f"unknown option(s) {', '.join(options)} for a {ext} file", source=str(p))
-        return read_description(p, lock=lock, drives=drives)
+        robot = read_description(p, lock=lock, drives=drives)
+        check_inertias(robot, str(p), lambda i: f"mass_inertia of body {robot.joints[i].link!r}")
+        return robot
     raise ModelError(f"unknown file type {ext or '(none)'!r}; expected .urdf, .yaml, .yml or .json", source=str(p))
 
 
@@ -62,6 +68,7 @@ def lower(
     cache_dir: str | os.PathLike | None = None,
     options: Options | None = None,
     progress: bool = False,
+    checks: bool = True,
 ) -> Dynamics:
     """Derive, lower and wrap the requested quantities of ``model`` (only those).
 
@@ -87,6 +94,10 @@ def lower(
         options: how expressions are formed (:class:`jaxskid.Options`: CSE, simplification, trig); for
             ``Equations``, the options they were derived with.
         progress: show a progress bar while deriving.
+        checks: whether calls from Python check their inputs before running: NaN or inf in a state or a
+            parameter (named, with the first bad index), parameter values that are not numbers, and
+            masses and inertias no rigid body has (:mod:`jaxskid.runtime._checks`); a few microseconds a
+            call, nothing inside a caller's ``jit``, ``grad`` or ``vmap``. ``dyn.checks`` can be changed later.
     """
     if isinstance(model, Equations):
         if symbolic is not None:
@@ -119,7 +130,8 @@ def lower(
     namespace, source = found
     native_root = Path(cache_dir or default_cache_dir()) / "native" if cache else None
     return Dynamics(namespace, source, path, catalogue=tuple(QUANTITIES),
-                    native=functools.partial(_native_library, root=native_root))
+                    native=functools.partial(_native_library, root=native_root),
+                    inertia=functools.partial(body_standard_map, robot), checks=checks)
 
 
 def _native_library(native: Mapping[str, str], root: Path | None) -> Path:

@@ -6,6 +6,20 @@ problem is (file and key path, when known) and what was expected, so that it rea
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable, Sequence
+
+
+def unknown_names(unknown: Iterable[str], known: Sequence[str], shown: int = 8) -> str:
+    """``"'x' (did you mean 'y'?); the <known> are a, b, ... (n in all)"``'s two parts for an error message:
+    each unknown name with the closest known ones, then the first ``shown`` known names."""
+    parts = []
+    for k in unknown:
+        close = difflib.get_close_matches(str(k), list(known), n=3, cutoff=0.6)
+        parts.append(f"{k!r}" + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""))
+    listed = ", ".join(known[:shown]) + (f", ... ({len(known)} in all)" if len(known) > shown else "")
+    return ", ".join(parts), listed or "(none)"
+
 
 class JaxskidError(Exception):
     """Base class of all errors jaxskid raises on purpose."""
@@ -14,6 +28,13 @@ class JaxskidError(Exception):
 class DescriptionWarning(UserWarning):
     """A description holds something jaxskid reads differently from what it says, as Skidy does (a ``child``
     list that disagrees with ``parent``): the message names the file, the key and what is used instead."""
+
+
+class PhysicalConsistencyWarning(UserWarning):
+    """A body's default mass and inertia are not those of any rigid body (zero mass with a rotational inertia,
+    principal moments that break the triangle inequality): the message names the file and the body. Every
+    algorithm still runs on them; make it an error with
+    ``warnings.simplefilter("error", jaxskid.PhysicalConsistencyWarning)``."""
 
 
 class ModelError(JaxskidError, ValueError):
@@ -50,6 +71,12 @@ def _rebuild_model_error(message, where, source):
 
 class RequestError(JaxskidError, ValueError):
     """A request names a quantity, parameter or argument that the lowered model does not have."""
+
+
+class InputError(JaxskidError, ValueError):
+    """An argument of a call holds values it cannot use: NaN or inf in a state or a parameter (the message
+    names the argument and the first bad index), a parameter value that is not a number, or one no rigid
+    body has (a negative mass). Raised by top-level calls, before anything runs."""
 
 
 class ShapeError(JaxskidError, ValueError):

@@ -32,6 +32,7 @@ import scipy.linalg
 
 from .._errors import IdentificationError, IdentificationWarning, RequestError, ShapeError
 from ..runtime._dynamics import Dynamics
+from ..runtime._checks import check_finite
 from ..runtime._jit import jit
 from . import _consistent
 from ._integrators import RK4
@@ -265,6 +266,7 @@ def identify(y, tau, method=LeastSquares(), *, names: Sequence[str] = ()) -> Est
     tau = np.asarray(tau, dtype=float)
     if y.ndim != 3 or tau.shape != y.shape[:2]:
         raise ShapeError(f"identify: expected y (samples, n, p) and tau (samples, n), got {y.shape} and {tau.shape}")
+    check_finite("identify", [("y", y), ("tau", tau)])
     s, n, p = y.shape
     if isinstance(method, GradientFit):
         return _gradient_fit(y, tau, method)

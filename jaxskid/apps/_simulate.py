@@ -32,7 +32,8 @@ from ..runtime._batching import batch_shape, float_arrays
 from ..runtime._dynamics import Dynamics
 from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
-from ..runtime._jit import forward_mode, jit, traced
+from ..runtime._checks import check_finite
+from ..runtime._jit import forward_mode, jit, top_level, traced
 from ..runtime._free_flyer import normalize
 from ..runtime._rk4 import held_torque_rk4
 from ..runtime._constrained import Baumgarte
@@ -209,11 +210,9 @@ def rollout(
         stepsize_controller: with a diffrax solver, an adaptive diffrax controller
             (``diffrax.PIDController(rtol=1e-8, atol=1e-8)``): the solver chooses its steps from ``dt`` on, and
             array controls stay held over the grid ``t_k = k dt``. ``None``: fixed steps of ``dt``.
-        autodiff: ``"reverse"`` for ``jax.grad`` (closed-form step derivatives, :mod:`jaxskid.runtime._implicit`,
-            :mod:`jaxskid.runtime._rk4`), ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (``jax.grad`` works too,
-            slower), or ``"auto"`` (the default): ``"forward"`` where the innermost differentiation around the
-            call is forward mode (``jax.jvp``, ``jax.jacfwd``), ``"reverse"`` otherwise (``jax.grad``,
-            ``jax.vjp``, ``jax.hessian``, and no differentiation at all).
+        autodiff: ``"reverse"`` for ``jax.grad`` (closed-form step derivatives, :mod:`jaxskid.runtime._rk4`),
+            ``"forward"`` for ``jax.jvp``/``jax.jacfwd`` (``jax.grad`` too, slower), or ``"auto"``: forward where
+            the innermost differentiation around the call is forward mode, else reverse (``jax.hessian`` too).
         devices: where a batch runs; default ``jax.local_devices()``. With several devices the batch is
             split across them (``jax.shard_map`` over a one-axis mesh; padded to a multiple of their
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
@@ -223,20 +222,15 @@ def rollout(
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
 
-    ``rollout`` is traceable: ``jax.vmap``, ``jax.grad``, ``jax.jacfwd``, ``jax.hessian`` and ``jax.jit``
-    apply to it in any composition, and ``controls`` may close over values those transformations trace (the
-    gains being learnt, the parameters being identified); a batch is one compiled call that maps the single
-    rollout (measured no slower than ``jax.vmap`` of single rollouts).
+    ``jax.vmap``, ``jax.grad``, ``jax.jacfwd``, ``jax.hessian`` and ``jax.jit`` compose with it, and ``controls``
+    may close over values they trace; a batch is one compiled call (no slower than ``jax.vmap`` of rollouts).
     """
     require_solver(dyn, "rollout")
     steps = _steps(steps)
-    saveat = _check_choices(saveat, checkpoint, autodiff)
-    if autodiff == "auto":
-        autodiff = "forward" if forward_mode() else "reverse"
+    saveat, autodiff = _check_choices(saveat, checkpoint, autodiff)
     integrator = _stepping(integrator, stepsize_controller)
     controller, u = as_controls(controls)
-    arrays, dtype = float_arrays([x0] if u is None else [x0, u])
-    x0, u = arrays[0], (arrays[1] if u is not None else None)
+    x0, u, dtype = _inputs(dyn, x0, u)
     p = None if params is None else dyn.param_vector(params, dtype)  # None: the defaults, compiled in
     dt = _step(dt, dtype)
     n, nq = dyn.nv, dyn.nq
@@ -257,6 +251,15 @@ def rollout(
     return _rollout_batch(*static, batch, devices, x0, p, u, dt, index)
 
 
+def _inputs(dyn, x0, u):
+    """``(x0, u, dtype)``: the initial states and the torque or input array (or None) in one floating dtype,
+    checked for NaN and inf at the top level (:func:`~jaxskid.runtime._checks.check_finite`)."""
+    if dyn.checks and top_level((x0, u)):
+        check_finite("rollout", [("x0", x0), ("controls", u)])
+    arrays, dtype = float_arrays([x0] if u is None else [x0, u])
+    return arrays[0], (arrays[1] if u is not None else None), dtype
+
+
 def _stepping(integrator, stepsize_controller):
     """The rollout's integrator, checked; diffrax is imported only when a diffrax object may be involved."""
     if stepsize_controller is None and "diffrax" not in sys.modules:  # then no diffrax solver exists here
@@ -273,9 +276,9 @@ def _steps(steps) -> int:
     return int(steps)
 
 
-def _check_choices(saveat, checkpoint, autodiff) -> SaveAt:
+def _check_choices(saveat, checkpoint, autodiff) -> tuple[SaveAt, str]:
     """The rollout's ``saveat`` (``None``: :class:`SaveAt`), ``checkpoint`` and ``autodiff`` checked; returns
-    ``saveat``."""
+    ``(saveat, autodiff)``, ``"auto"`` resolved by the differentiation around the call."""
     saveat = SaveAt() if saveat is None else saveat
     if autodiff not in (*AUTODIFF, "auto"):
         raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, (*AUTODIFF, 'auto')))}, "
@@ -285,7 +288,9 @@ def _check_choices(saveat, checkpoint, autodiff) -> SaveAt:
         raise RequestError(f"rollout: saveat: expected a jaxskid.SaveAt (diffrax solvers too), got {got}")
     if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
         raise RequestError(f"rollout: checkpoint: expected None or jaxskid.Checkpoint(), got {checkpoint!r}")
-    return saveat
+    if autodiff == "auto":
+        autodiff = "forward" if forward_mode() else "reverse"
+    return saveat, autodiff
 
 
 def _step(dt, dtype):

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from .._errors import RequestError
+from .._errors import RequestError, unknown_names
 from ..model._robot import Robot
 from ..symbolic import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs
 from . import _mimic as mimic
@@ -120,9 +120,8 @@ def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, 
         names = list(quantities)
     unknown = [q for q in names if q not in QUANTITIES]
     if unknown:
-        raise RequestError(
-            f"unknown quantity {', '.join(map(repr, unknown))}; available: {', '.join(sorted(QUANTITIES))}"
-        )
+        named, listed = unknown_names(unknown, sorted(QUANTITIES), shown=len(QUANTITIES))
+        raise RequestError(f"unknown quantity {named}; available: {listed}")
     if quantities is None or quantities == "all":
         names = mimic.supported(robot, names)
     if not robot.end_effectors:

@@ -14,12 +14,11 @@ The layout knows nothing of arrays; :func:`jaxskid.runtime.param_array` builds t
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from .._errors import RequestError
+from .._errors import RequestError, unknown_names
 
 
 @dataclass(frozen=True)
@@ -57,12 +56,8 @@ class ParameterLayout:
         unknown = [k for k in given if k not in self._index]
         if not unknown:
             return
-        parts = []
-        for k in unknown:
-            close = difflib.get_close_matches(str(k), self.names, n=3, cutoff=0.6)
-            parts.append(f"{k!r}" + (f" (did you mean {', '.join(map(repr, close))}?)" if close else ""))
-        shown = ", ".join(self.names[:8]) + (f", ... ({len(self.names)} in all)" if len(self.names) > 8 else "")
-        raise RequestError(f"{where}: unknown parameter {', '.join(parts)}; the parameters are {shown or '(none)'}")
+        named, listed = unknown_names(unknown, self.names)
+        raise RequestError(f"{where}: unknown parameter {named}; the parameters are {listed}")
 
     def missing_defaults(self, given: Mapping | None = None) -> list[str]:
         """Names that neither ``given`` nor the defaults provide."""

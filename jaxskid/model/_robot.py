@@ -31,7 +31,7 @@ import numpy as np
 import sympy as sp
 
 from . import _lie as lie
-from .._errors import ModelError
+from .._errors import ModelError, unknown_names
 from ._constraint import check_constraints, constraint_symbols
 from ._drive import Drive, drive_parameter_names
 from ._fixed import lock_joint, merge_fixed
@@ -155,6 +155,24 @@ class Robot:
         """The size of ``qd``, ``qdd`` and ``tau``: ``6 + n_dof`` with a floating base (its twist or wrench
         first), else ``n_dof``."""
         return self.n_dof + 6 * self.floating_base
+
+    def __repr__(self) -> str:
+        kinds: dict[str, int] = {}
+        for j in self.joints:
+            kind = "mimic" if j.mimic is not None else j.type
+            kinds[kind] = kinds.get(kind, 0) + 1
+        joints = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "none"
+        defaults = sum(1 for k in self.parameters if k in dict(self.defaults))
+        extras = ["floating_base=True"] if self.floating_base else []
+        if self.end_effectors:
+            extras.append(f"end_effectors={list(self.end_effectors)}")
+        if self.constraints:
+            extras.append(f"{len(self.constraints)} constraint{'s' * (len(self.constraints) != 1)}")
+        if self.driven:
+            extras.append(f"{len(self.driven)} drive{'s' * (len(self.driven) != 1)}")
+        return (f"Robot({self.name!r}, n_dof={self.n_dof}, joints: {joints}, bodies={self.n_bodies}, "
+                f"parameters={len(self.parameters)} ({defaults} with defaults)"
+                + "".join(f", {e}" for e in extras) + ")")
 
     @property
     def n_bodies(self) -> int:
@@ -328,10 +346,8 @@ class Robot:
             values = {k: defaults[k] for k in values}
         unknown = [k for k in values if k not in self._parameters]
         if unknown:
-            raise ModelError(
-                f"unknown parameter(s) {', '.join(unknown)}; parameters are {', '.join(self._parameters)}",
-                where="substitute",
-            )
+            named, listed = unknown_names(unknown, self._parameters)
+            raise ModelError(f"unknown parameter(s) {named}; the parameters are {listed}", where="substitute")
         sub = {symbol(k): sp.Float(float(v)) if not isinstance(v, sp.Basic) else v for k, v in values.items()}
         defaults = {k: v for k, v in self.defaults if k not in values}
         return self.map_expressions(lambda e: e.xreplace(sub), defaults=defaults)
@@ -343,8 +359,8 @@ class Robot:
         keep = list(dict.fromkeys(names))
         unknown = [k for k in keep if k not in self._parameters]
         if unknown:
-            raise ModelError(f"unknown parameter(s) {', '.join(unknown)}; parameters are "
-                             f"{', '.join(self._parameters) or '(none)'}", where=where)
+            named, listed = unknown_names(unknown, self._parameters)
+            raise ModelError(f"unknown parameter(s) {named}; the parameters are {listed}", where=where)
         fixed = [p for p in self._parameters if p not in keep]
         return self.substitute(fixed) if fixed else self
 

@@ -150,3 +150,29 @@ def params_from_standard(
             where="params_from_standard",
         )
     return {s.name: float(v) for s, v in zip(unknowns, x)}
+
+
+def body_standard_map(robot: Robot):
+    """``(f, bodies, involved)``: ``f(p) -> pi`` maps a vector ``p`` ``(..., n_params)`` of the robot's own
+    parameters to the bodies' standard parameters ``(..., n_bodies, 10)`` (a floating base first), with NumPy;
+    ``bodies`` names them; ``involved[k]`` is ``(mass, all)``: the parameters body ``k``'s mass depends on,
+    and those its whole inertia depends on."""
+    inertias = ([robot.base_inertia] if robot.floating_base else []) + [j.inertia for j in robot.joints]
+    bodies = ((robot.base,) if robot.floating_base else ()) + robot.link_names
+    symbols = [symbol(k) for k in robot.parameters]
+    exprs = [[sp.sympify(e) for e in lie.standard_parameters(m)] for m in inertias]
+    flat = sp.lambdify(symbols, [e for body in exprs for e in body], "numpy", cse=True)
+    names = {symbol(k): k for k in robot.parameters}
+
+    def used(es):
+        return sorted({names[s] for e in es for s in e.free_symbols if s in names}, key=robot.parameters.index)
+
+    involved = [(used(body[:1]), used(body)) for body in exprs]
+
+    def standard(p):
+        p = np.asarray(p, dtype=np.float64)
+        values = flat(*(p[..., k] for k in range(p.shape[-1])))
+        out = np.stack(np.broadcast_arrays(*values), axis=-1) if values else np.zeros((*p.shape[:-1], 0))
+        return out.reshape((*p.shape[:-1], len(inertias), N_STANDARD))
+
+    return standard, bodies, involved

@@ -9,13 +9,16 @@ missing names take their defaults and unknown names are errors, or a vector in t
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 import jax
 import jax.numpy as jnp
 
 from . import _free_flyer as _ff
-from .._errors import RequestError
+import numpy as np
+
+from .._errors import InputError, RequestError
+from ._checks import InertiaCheck
 from ..model._parameters import ParameterLayout
 from ._parameters import HostParameters, param_array
 
@@ -51,6 +54,12 @@ class QuantitySet:
             their armature, friction and offset.
         floating_base: whether the robot's root is a free-flyer: ``q`` is then ``(p, quat, q_j)`` (``nq = 7 + n``)
             and velocities ``(omega, v, qd_j)`` (``nv = 6 + n``); see :mod:`jaxskid.runtime._free_flyer`.
+        inertia: ``() -> (standard, bodies, involved)``, the map from a parameter vector to the bodies'
+            standard parameters (:func:`jaxskid.model._standard.body_standard_map`), called on the first check
+            of parameter values; None: masses and inertias are not checked at call time.
+        checks: whether top-level calls check their inputs (:mod:`jaxskid.runtime._checks`): NaN or inf in
+            a state or a parameter, parameter values that are not numbers, masses and inertias no rigid body
+            has. Inside a caller's ``jit``, ``grad`` or ``vmap`` nothing is checked.
     """
 
     _made = "made"
@@ -68,6 +77,8 @@ class QuantitySet:
         catalogue: Collection[str] = (),
         driven: Sequence[str] = (),
         floating_base: bool = False,
+        inertia: Callable[[], tuple] | None = None,
+        checks: bool = True,
     ):
         self.robot_name: str = robot_name
         self.driven: tuple[str, ...] = tuple(driven)
@@ -86,6 +97,11 @@ class QuantitySet:
         self._signatures = {k: (tuple(a), tuple(s)) for k, (a, s) in signatures.items()}
         self._catalogue = frozenset(catalogue)
         self._host = HostParameters(layout)
+        self.checks: bool = bool(checks)
+        """Whether top-level calls check their inputs (see the ``checks`` argument)."""
+        self._inertia_source = inertia
+        self._inertia: InertiaCheck | None = None
+        self._last_checked = None  # the last parameter vector that passed (a dict packs to the same one)
 
     @property
     def quantities(self) -> tuple[str, ...]:
@@ -134,7 +150,26 @@ class QuantitySet:
         a float64 NumPy array (``None`` gives the read-only default vector), or ``params`` unchanged where
         they hold JAX arrays or tracers (:func:`param_array` converts those inside a jitted function)."""
         host = self._host.pack(params, where)
-        return params if host is None else host
+        if host is None:
+            return params
+        if self.checks and host is not self._host.defaults and host is not self._last_checked:
+            self._check_params(host, where)
+            self._last_checked = host
+        return host
+
+    def _check_params(self, p: np.ndarray, where: str) -> None:
+        """:class:`InputError` for a NaN or inf parameter (named) or a physically impossible body."""
+        finite = np.isfinite(p)
+        if not finite.all():
+            k = int(np.argmax(~finite.reshape(-1, p.shape[-1]).all(axis=0)))
+            bad = p[..., k].ravel()[~finite[..., k].ravel()][0]
+            raise InputError(f"{where}: {self.parameters[k]} is {bad}: expected finite parameter values")
+        if self._inertia is None and self._inertia_source is not None:
+            standard, bodies, involved = self._inertia_source()
+            self._inertia = InertiaCheck(self.parameters, standard, bodies, involved, self._host.defaults)
+            self._inertia_source = None
+        if self._inertia is not None:
+            self._inertia.check(p, where)
 
     def __getattr__(self, name: str):
         if name.startswith("_"):

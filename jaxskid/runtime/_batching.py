@@ -1,9 +1,10 @@
 """Batches of states and parameters: leading axes checked, broadcast and mapped with ``jax.vmap``.
 
 Every function of the runtime takes its state arrays with their own trailing shape (``(n,)``, a wrench
-``(n_ee, 6)``), or with leading batch axes. The state arguments of one call share one batch shape; the
-parameters ``(..., n_params)`` (and wrenches) broadcast against it, so a batch of parameter sets pairs
-with a batch of states, or sweeps one state. The batch is flattened to one axis and mapped.
+``(n_ee, 6)``), or with leading batch axes. One rule holds for every argument, states and parameters
+``(..., n_params)`` (and wrenches) alike: their batch axes broadcast against each other (NumPy's rule), so
+a batch of parameter sets pairs with a batch of states or sweeps one state, and one ``qd`` serves a batch
+of ``q``. The batch is flattened to one axis and mapped.
 """
 
 from __future__ import annotations
@@ -36,15 +37,16 @@ def leading(where: str, arg: str, shape: tuple, core: tuple) -> tuple:
 
 
 def batch_shape(where: str, states: Sequence[tuple[str, tuple, tuple]], extras: Sequence[tuple[str, tuple, tuple]] = ()):
-    """The batch shape of a call: ``states`` (name, shape, trailing shape) share one, and the ``extras``
-    (parameters, wrenches) broadcast against it."""
-    batch = None
+    """The batch shape of a call: the batch axes of ``states`` and ``extras`` (name, shape, trailing shape),
+    the states' and the extras' (parameters, wrenches) alike, broadcast against each other."""
+    batch = ()
     for arg, shape, core in states:
         lead = leading(where, arg, shape, core)
-        if batch is not None and lead != batch:
-            raise ShapeError(f"{where}: batch shapes differ: {batch} and {lead} for {arg}")
-        batch = lead
-    batch = batch or ()
+        try:
+            batch = tuple(np.broadcast_shapes(batch, lead))
+        except ValueError:
+            raise ShapeError(f"{where}: {arg}: batch {lead} does not broadcast with the batch {batch} of the "
+                             f"arguments before it") from None
     for arg, shape, core in extras:
         lead = leading(where, arg, shape, core)
         try:

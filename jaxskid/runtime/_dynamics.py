@@ -18,13 +18,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RequestError, ShapeError
+from .._errors import unknown_names, RequestError, ShapeError
 from ._base import QuantitySet, metadata_fields
 from ._ffi import enabled as native_enabled, library, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._forward import accelerations, forward_dynamics
-from ._jit import compiler_options, jit, outermost  # noqa: F401  (compiler_options, jit: imported from here too)
+from ._checks import check_finite
+from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
 from ._parameters import param_array
 
@@ -92,10 +93,10 @@ class Dynamics(QuantitySet):
     _remedy = "jaxskid.lower(robot, quantities=[..., {name!r}])"
 
     def __init__(self, namespace: dict, source: str, path=None, catalogue: Collection[str] = (),
-                 native: Callable | None = None):
+                 native: Callable | None = None, inertia: Callable | None = None, checks: bool = True):
         meta = namespace["METADATA"]
         quantities = meta["quantities"]
-        super().__init__(**metadata_fields(meta), catalogue=catalogue)
+        super().__init__(**metadata_fields(meta), catalogue=catalogue, inertia=inertia, checks=checks)
         self.source = source
         self.path = path
         self._meta = quantities
@@ -272,7 +273,10 @@ class Dynamics(QuantitySet):
 
         call = f"{name}({', '.join(args)}, params=None, *{', wrench=None' if takes_wrench else ''}, out=None)"
 
-        def fn(*state, params=None, wrench=None, out=None):
+        def fn(*state, params=None, wrench=None, out=None, **unexpected):
+            if unexpected:
+                named, _ = unknown_names(unexpected, ("params", "wrench", "out") if takes_wrench else ("params", "out"))
+                raise TypeError(f"{name}: unexpected keyword argument {named}; expected {call}")
             if len(state) == len(args) + 1 and params is None:
                 *state, params = state
             if len(state) != len(args):
@@ -281,6 +285,8 @@ class Dynamics(QuantitySet):
                 raise ShapeError(f"{name} takes no wrench; expected {call}")
             if takes_wrench and params is not None:
                 self._check_not_a_wrench(name, params, call)
+            if self.checks and top_level(state):
+                check_finite(name, zip(args, state))
             if params is not None:  # None stays: the defaults become constants of the compiled program
                 params = self._packed(params)
             if out is not None:

@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import ShapeError
+from .._errors import InputError, ShapeError
 from ..model._parameters import ParameterLayout
 
 _PLAIN = (float, int, np.floating, np.integer)
@@ -82,6 +82,17 @@ def param_array(layout: ParameterLayout, params=None, dtype=None, where: str = "
     return p
 
 
+def check_numeric(names, values, where: str = "params") -> None:
+    """:class:`InputError` naming the first parameter whose value is not a number or a numeric array (a
+    string, None, an object): JAX's own error would name a pytree path inside a jitted function."""
+    for name, value in zip(names, values):
+        if isinstance(value, (jax.Array, jax.core.Tracer, *_PLAIN)):
+            continue
+        kind = np.asarray(value).dtype.kind if not isinstance(value, (str, bytes)) and value is not None else "U"
+        if kind not in "biufc":
+            raise InputError(f"{where}: {name}: expected a number or a numeric array, got {value!r}")
+
+
 class HostParameters:
     """One model's concrete parameters packed on the host: float64 NumPy arrays ``(..., n_params)``.
 
@@ -137,10 +148,13 @@ class HostParameters:
                 return vector
         except (TypeError, ValueError):
             pass
-        vector = _packed(self._values(params, where))
+        values = self._values(params, where)
+        vector = _packed(values)
         if vector is not None:
             vector.flags.writeable = False
             self._last = (dict(params), vector)
+        else:
+            check_numeric(self.layout.names, values, where)
         return vector
 
     def _values(self, params: Mapping, where: str) -> list:

@@ -1,0 +1,160 @@
+"""Whether a robot's default inertias make a usable model: checked when a description is loaded.
+
+Two checks, at the default parameter values (a robot with parameters that have no default is not checked):
+
+* **A joint that moves nothing.** The mass matrix is positive definite only if every moving joint carries
+  inertia along its own axis: for joint ``i`` with unit screw ``X_i`` and the composite inertia ``I^c_i``
+  of the subtree it moves (Featherstone 2008, sec. 6.2), ``M_ii = X_i^T I^c_i X_i > 0``. A subtree with
+  zero mass and zero inertia (a massless leaf link on a moving joint, a point mass on the joint's axis)
+  makes ``M`` singular in every configuration, and forward dynamics and rollouts NaN. It is an error
+  (:class:`~jaxskid.ModelError`) when ``M_ii`` vanishes at the reference configuration and at random ones.
+  With a floating base, the whole robot's composite inertia must be positive definite.
+* **A body that no rigid body can be** (Wensing, Kim & Slotine, RA-L 2017): zero mass with a nonzero
+  rotational inertia, or principal moments about the centre of mass that break the triangle inequality
+  ``I_1 + I_2 >= I_3`` (a planar model that gives the moment about its axis only is let be). Published URDFs carry such bodies (placeholders, rounding), and every algorithm
+  still runs on them, so each is a :class:`~jaxskid.PhysicalConsistencyWarning` naming the file and the
+  body, not an error; turn it into one with ``warnings.simplefilter("error", jaxskid.PhysicalConsistencyWarning)``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+import scipy.linalg
+import sympy as sp
+
+from .._errors import ModelError, PhysicalConsistencyWarning
+from ._validate import symbol
+
+_RANDOM_CONFIGURATIONS = 3
+_TOLERANCE = 1e-12  # relative to the robot's largest inertia entry
+
+
+def _numeric(matrix, values: dict) -> np.ndarray | None:
+    try:
+        return np.array(sp.Matrix(matrix).xreplace(values), dtype=float)
+    except (TypeError, ValueError):  # a parameter without a default
+        return None
+
+
+def _adjoint(pose: np.ndarray) -> np.ndarray:
+    """``Ad_T`` acting on twists ``(omega, v)``: ``[[R, 0], [p~ R, R]]``."""
+    r, p = pose[:3, :3], pose[:3, 3]
+    px = np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
+    out = np.zeros((6, 6))
+    out[:3, :3] = out[3:, 3:] = r
+    out[3:, :3] = px @ r
+    return out
+
+
+def _screw_pose(screw: np.ndarray, q: float) -> np.ndarray:
+    w, v = screw[:3], screw[3:]
+    twist = np.zeros((4, 4))
+    twist[:3, :3] = [[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]
+    twist[:3, 3] = v
+    return scipy.linalg.expm(twist * q)
+
+
+def check_inertias(robot, source: str | None = None, where: Callable[[int], str] | None = None) -> None:
+    """Raise :class:`ModelError` for a moving joint that carries no inertia along its axis, and warn about
+    bodies that are not physically consistent (module docstring). ``where(i)``: the key of body ``i`` in
+    the description (default ``"body '<link>'"``); ``source``: the file, for the messages."""
+    defaults = robot.default_params()
+    if any(k not in defaults for k in robot.parameters):
+        return
+    values = {symbol(k): sp.Float(v) for k, v in defaults.items()}
+    joints = robot.joints
+    origins = [_numeric(j.origin, values) for j in joints]
+    screws = [_numeric(sp.Matrix(list(j.screw)), values) for j in joints]
+    inertias = [_numeric(j.inertia, values) for j in joints]
+    if any(x is None for x in (*origins, *screws, *inertias)):
+        return
+    screws = [s.reshape(6) for s in screws]
+    where = where or (lambda i: f"body {joints[i].link!r}")
+    for i, m6 in enumerate(inertias):
+        _warn_inconsistent(m6, source, where(i))
+    base = _numeric(robot.base_inertia, values) if robot.floating_base and robot.base_inertia is not None else None
+    scale = max([float(np.abs(m).max()) for m in inertias] + [0.0 if base is None else float(np.abs(base).max())])
+    moving = [i for i, j in enumerate(joints) if j.type != "fixed" and j.mimic is None]
+    if not moving and not robot.floating_base:
+        return
+    if scale == 0.0:
+        raise ModelError("every body has zero mass and zero inertia; the equations of motion are empty",
+                         source=source)
+    rng = np.random.default_rng(0)
+    configurations = [np.zeros(len(joints))] + [rng.uniform(-np.pi, np.pi, len(joints))
+                                                for _ in range(_RANDOM_CONFIGURATIONS)]
+    singular = None
+    for q in configurations:
+        composite = _composite(robot, origins, screws, inertias, q)
+        bad = [i for i, j in enumerate(joints)
+               if j.type != "fixed" and j.mimic is None
+               and screws[i] @ composite[i] @ screws[i] <= _TOLERANCE * scale]
+        singular = bad if singular is None else [i for i in singular if i in bad]
+        if not singular:
+            break
+    if singular:
+        i = singular[0]
+        moved = [joints[k].link for k in _subtree(robot, i)]
+        raise ModelError(
+            f"joint {joints[i].name!r} moves bodies with no inertia along its axis ({', '.join(map(repr, moved))}: "
+            f"zero mass and zero inertia), so the mass matrix is singular and forward dynamics undefined; give "
+            f"them mass and inertia, or fix the joint (load(..., lock={{{joints[i].name!r}: 0.0}}))",
+            where=where(i), source=source)
+    if base is not None:
+        total = base + sum((_adjoint(_inverse(origins[i])).T @ composite[i] @ _adjoint(_inverse(origins[i]))
+                            for i, j in enumerate(joints) if j.parent < 0), np.zeros((6, 6)))
+        if np.linalg.eigvalsh(total)[0] <= _TOLERANCE * scale:
+            raise ModelError("the floating base and the bodies it carries have no mass or inertia in some "
+                             "direction; the mass matrix is singular", where="base_inertia", source=source)
+
+
+def _inverse(pose: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = pose[:3, :3].T
+    out[:3, 3] = -pose[:3, :3].T @ pose[:3, 3]
+    return out
+
+
+def _subtree(robot, i: int) -> list[int]:
+    inside = {i}
+    for k, j in enumerate(robot.joints):
+        if j.parent in inside:
+            inside.add(k)
+    return sorted(inside)
+
+
+def _composite(robot, origins, screws, inertias, q) -> list[np.ndarray]:
+    """The composite inertia of each body's subtree in its own frame, at configuration ``q``."""
+    composite = [m.copy() for m in inertias]
+    for c in range(len(robot.joints) - 1, -1, -1):  # children come after their parents
+        parent = robot.joints[c].parent
+        if parent < 0:
+            continue
+        pose = origins[c] @ _screw_pose(screws[c], q[c])  # body c in its parent's frame
+        ad = _adjoint(_inverse(pose))  # parent-frame twists to body c's frame
+        composite[parent] = composite[parent] + ad.T @ composite[c] @ ad
+    return composite
+
+
+def _warn_inconsistent(m6: np.ndarray, source: str | None, key: str) -> None:
+    mass = m6[3, 3]
+    rotational = m6[:3, :3]
+    place = ": ".join(p for p in (source, key) if p)
+    if mass <= 0:
+        if np.abs(rotational).max() > 0:
+            warnings.warn(f"{place}: zero mass with a nonzero rotational inertia (max {np.abs(rotational).max():.3g}); "
+                          "no rigid body has that", PhysicalConsistencyWarning, stacklevel=4)
+        return
+    c = np.array([m6[2, 4], m6[0, 5], m6[1, 3]]) / mass  # m c~ in the upper-right block
+    cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+    about_com = rotational + mass * cx @ cx  # I_O = I_C - m c~ c~
+    moments = np.sort(np.linalg.eigvalsh(0.5 * (about_com + about_com.T)))
+    slack = moments[0] + moments[1] - moments[2]
+    planar = moments[1] <= 1e-12 * moments[2]  # the moment about one axis only: a planar model's shortcut
+    if slack < -1e-6 * max(moments[2], 1e-300) and not planar:
+        warnings.warn(f"{place}: principal moments of inertia {np.round(moments, 9).tolist()} about the centre of "
+                      f"mass break the triangle inequality I1 + I2 >= I3; no rigid body has them",
+                      PhysicalConsistencyWarning, stacklevel=4)

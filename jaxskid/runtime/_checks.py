@@ -1,0 +1,113 @@
+"""The checks a top-level call makes on its inputs before anything runs.
+
+* :func:`check_finite`: NaN or inf in a state argument raises :class:`~jaxskid.InputError` naming the
+  argument, the first bad index and its value (a NaN ``q`` would otherwise give a partly NaN ``M`` and a
+  rollout NaN to its end).
+* :class:`InertiaCheck`: a parameter vector that gives a body a negative mass, or a rotational inertia about
+  its centre of mass that is not positive semi-definite (``I_C = I_O + h~ h~ / m``, with ``h = m c``),
+  raises :class:`~jaxskid.InputError` naming the parameters of the body: the mass matrix is then not
+  positive definite and forward dynamics meaningless. A body whose standard parameters equal the
+  defaults' is not checked again (they were checked at load, :mod:`jaxskid.model._inertia_check`). The
+  triangle inequality of the principal moments is not asked for here: identified parameters often break
+  it and still reproduce the torques they were fitted to, and planar models give the moment about their
+  axis only.
+
+Only concrete values are checked: inside a caller's ``jit``, ``grad`` or ``vmap`` the inputs are tracers,
+and the checks are skipped. ``jaxskid.lower(..., checks=False)`` skips them at the top level too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+
+import jax
+import numpy as np
+
+from .._errors import InputError
+
+
+def _concrete(value):
+    """``value`` as a NumPy array, or None where it is traced (or not numeric: other checks name that)."""
+    if value is None or isinstance(value, jax.core.Tracer):
+        return None
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError, jax.errors.ConcretizationTypeError):
+        return None
+    return array if array.dtype.kind in "fc" else None
+
+
+def check_finite(where: str, named: Iterable[tuple[str, object]]) -> None:
+    """Raise :class:`InputError` for the first argument ``(name, value)`` that holds NaN or inf."""
+    for name, value in named:
+        array = _concrete(value)
+        if array is None or array.size == 0:
+            continue
+        finite = np.isfinite(array)
+        if finite.all():
+            continue
+        index = np.unravel_index(int(np.argmin(finite.ravel())), array.shape)
+        shown = f"{name}[{', '.join(map(str, index))}]" if array.ndim else name
+        raise InputError(f"{where}: {shown} is {array[index]}: expected finite values (no NaN or inf)")
+
+
+class InertiaCheck:
+    """The physical check of parameter vectors (module docstring).
+
+    Args:
+        names: the parameter names, the order of the vector.
+        standard: ``f(p) -> pi``, the standard parameters ``(..., n_bodies, 10)`` (``m, mcx, mcy, mcz, Ixx,
+            Ixy, Iyy, Ixz, Iyz, Izz`` per body) of a vector ``p`` ``(..., n_params)``; built on first use.
+        bodies: the body names, in the order of ``pi``.
+        involved: per body, ``(mass, all)``: the parameter names its mass and its whole inertia depend on
+            (for the messages).
+        defaults: the default vector, or None.
+    """
+
+    def __init__(self, names: Sequence[str], standard: Callable, bodies: Sequence[str],
+                 involved: Sequence[Sequence[str]], defaults: np.ndarray | None):
+        self.names, self.standard, self.bodies, self.involved = tuple(names), standard, tuple(bodies), involved
+        self.reference = None if defaults is None else standard(defaults)
+
+    def check(self, p: np.ndarray, where: str = "params") -> None:
+        pi = self.standard(p)
+        m = pi[..., 0]
+        if (m < 0).any():
+            k = int(np.argmax((m < 0).reshape(-1, m.shape[-1]).any(axis=0)))
+            raise InputError(f"{where}: {self._named(k, 0)} gives body {self.bodies[k]!r} the mass "
+                             f"{float(np.min(m[..., k])):g}: expected a mass >= 0")
+        changed = np.ones(m.shape[-1], bool) if self.reference is None else \
+            (np.abs(pi - self.reference) > 1e-12 * (1 + np.abs(self.reference))).reshape(-1, *pi.shape[-2:]).any(axis=(0, 2))
+        if not changed.any():
+            return
+        sub = pi[..., changed, :]
+        mass, h, about_origin = sub[..., 0], sub[..., 1:4], _rotational(sub[..., 4:])
+        hx = _skew(h)
+        safe = np.where(mass > 0, mass, 1.0)[..., None, None]
+        about_com = about_origin + np.where(mass[..., None, None] > 0, hx @ hx / safe, 0.0)
+        low = np.linalg.eigvalsh(0.5 * (about_com + np.swapaxes(about_com, -1, -2)))[..., 0]
+        scale = np.abs(about_origin).max(axis=(-1, -2))
+        bad = (low < -1e-9 * np.maximum(scale, 1e-300)).reshape(-1, low.shape[-1]).any(axis=0)
+        if bad.any():
+            k = int(np.flatnonzero(changed)[int(np.argmax(bad))])
+            raise InputError(
+                f"{where}: body {self.bodies[k]!r}: {self._named(k, 1)} give a rotational inertia about the centre "
+                f"of mass with the eigenvalue {float(np.min(low[..., int(np.argmax(bad))])):.6g}: expected a "
+                f"positive semi-definite inertia")
+
+    def _named(self, k: int, which: int) -> str:
+        names = self.involved[k][which]
+        shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+        return shown or "constants"
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    zero = np.zeros_like(x)
+    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)], -2)
+
+
+def _rotational(six: np.ndarray) -> np.ndarray:
+    """``(Ixx, Ixy, Iyy, Ixz, Iyz, Izz)`` as symmetric 3x3 matrices."""
+    xx, xy, yy, xz, yz, zz = (six[..., k] for k in range(6))
+    return np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], -2)

@@ -1,0 +1,176 @@
+"""What a careful library refuses, warns about or names: degenerate inertias at load, impossible parameter
+values and NaN at call time, misspelt names, and one broadcasting rule for every argument.
+
+Each error is checked for its exact type and for naming what the user wrote (the file, the key, the argument
+and its first bad index, the parameter).
+"""
+
+import re
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxskid
+from helpers import ERD, ROBOTS_DIR, URDFS
+
+UR5 = URDFS["ur5"]
+
+
+def _urdf_with(tmp_path, link: str, mass: float, inertia: tuple) -> str:
+    """The UR5's URDF with ``link``'s mass and principal moments replaced."""
+    text = UR5.read_text()
+    block = re.search(r'<link name="%s">.*?</link>' % link, text, re.S).group(0)
+    new = re.sub(r'<mass value="[^"]*"\s*/>', f'<mass value="{mass}"/>', block)
+    ixx, iyy, izz = inertia
+    new = re.sub(r"<inertia [^/]*/>", f'<inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" iyz="0" izz="{izz}"/>', new)
+    path = tmp_path / f"ur5_{link}.urdf"
+    path.write_text(text.replace(block, new))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def ur5():
+    return jaxskid.lower(jaxskid.load(UR5), ["mass_matrix", "inverse_dynamics", "forward_dynamics"])
+
+
+# ---------------------------------------------------------------- at load
+
+
+def test_massless_leaf_on_a_moving_joint_is_an_error_naming_file_link_and_joint(tmp_path):
+    path = _urdf_with(tmp_path, "wrist_3_link", 0.0, (0.0, 0.0, 0.0))
+    with pytest.raises(jaxskid.ModelError) as err:
+        jaxskid.load(path)
+    message = str(err.value)
+    assert path in message and "wrist_3_link" in message and "'wrist_3_joint'" in message
+    assert "singular" in message
+
+
+def test_massless_leaf_can_be_locked(tmp_path):
+    """The remedy the message names: a locked joint carries its massless body as part of its parent."""
+    robot = jaxskid.load(_urdf_with(tmp_path, "wrist_3_link", 0.0, (0.0, 0.0, 0.0)), lock={"wrist_3_joint": 0.0})
+    assert robot.n_dof == 5
+
+
+def test_a_real_robot_with_massless_finger_links_names_the_joint():
+    with pytest.raises(jaxskid.ModelError, match=r"romeo\.urdf: link 'LFinger21Link' <inertial>: joint 'LFinger21'"):
+        jaxskid.load(ERD / "romeo_description/urdf/romeo.urdf")
+
+
+@pytest.mark.parametrize("mass, moments, what", [
+    (0.0, (0.01, 0.01, 0.01), "zero mass with a nonzero rotational inertia"),
+    (1.0, (0.001, 0.001, 0.01), "triangle inequality"),
+])
+def test_inconsistent_bodies_warn_naming_file_and_link(tmp_path, mass, moments, what):
+    path = _urdf_with(tmp_path, "wrist_3_link", mass, moments)
+    with pytest.warns(jaxskid.PhysicalConsistencyWarning, match=what) as record:
+        jaxskid.load(path)
+    assert path in str(record[0].message) and "wrist_3_link" in str(record[0].message)
+
+
+def test_consistent_robots_load_without_a_warning():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", jaxskid.PhysicalConsistencyWarning)
+        for path in (UR5, URDFS["panda"], URDFS["solo12"], ROBOTS_DIR / "arm_3dof.yaml"):
+            jaxskid.load(path)
+
+
+# ---------------------------------------------------------------- at call time
+
+
+def test_negative_mass_names_the_parameter(ur5):
+    q = np.zeros(ur5.n_dof)
+    with pytest.raises(jaxskid.InputError, match=r"params: upper_arm_link_m gives body 'upper_arm_link' the mass -9"):
+        ur5.mass_matrix(q, params={"upper_arm_link_m": -9.0})
+    vector = ur5.param_vector()
+    bad = np.asarray(vector).copy()
+    bad[ur5.parameters.index("forearm_link_m")] = -1.0
+    with pytest.raises(jaxskid.InputError, match="forearm_link_m"):
+        ur5.inverse_dynamics(q, q, q, bad)
+
+
+def test_indefinite_inertia_names_the_body(ur5):
+    """A negative moment about the centre of mass: M is not positive definite. The triangle inequality is not
+    asked for at call time (identified parameters break it and still fit)."""
+    q = np.zeros(ur5.n_dof)
+    with pytest.raises(jaxskid.InputError, match=r"body 'forearm_link': forearm_link_Ixx.*positive semi-definite"):
+        ur5.mass_matrix(q, params={"forearm_link_Ixx": -1.0})
+    ur5.mass_matrix(q, params={"forearm_link_Izz": 10.0})  # positive definite, breaks I1 + I2 >= I3: runs
+
+
+@pytest.mark.parametrize("value, what", [("heavy", "expected a number"), (float("nan"), "is nan"),
+                                         (float("inf"), "is inf"), (None, "expected a number")])
+def test_bad_parameter_values_name_the_parameter(ur5, value, what):
+    with pytest.raises(jaxskid.InputError, match=rf"params: (upper_arm_link_m)?.*{what}"):
+        ur5.mass_matrix(np.zeros(ur5.n_dof), params={"upper_arm_link_m": value})
+
+
+def test_nan_in_a_state_names_the_argument_and_index(ur5):
+    n = ur5.n_dof
+    q = np.zeros((4, n))
+    q[2, 3] = np.nan
+    with pytest.raises(jaxskid.InputError, match=r"mass_matrix: q\[2, 3\] is nan"):
+        ur5.mass_matrix(q)
+    with pytest.raises(jaxskid.InputError, match=r"inverse_dynamics: qdd\[1\] is inf"):
+        ur5.inverse_dynamics(np.zeros(n), np.zeros(n), np.array([0, np.inf, 0, 0, 0, 0.0]))
+    with pytest.raises(jaxskid.InputError, match=r"forward_dynamics: tau\[0\] is nan"):
+        ur5.forward_dynamics(np.zeros(n), np.zeros(n), jnp.full(n, jnp.nan))
+
+
+def test_rollout_from_nan_refuses(ur5):
+    n = ur5.n_dof
+    with pytest.raises(jaxskid.InputError, match=r"rollout: x0\[1\] is nan"):
+        jaxskid.rollout(ur5, np.r_[0, np.nan, np.zeros(2 * n - 2)], np.zeros((5, n)), 1e-3, 5)
+    u = np.zeros((5, n))
+    u[3, 2] = np.nan
+    with pytest.raises(jaxskid.InputError, match=r"rollout: controls\[3, 2\] is nan"):
+        jaxskid.rollout(ur5, np.zeros(2 * n), u, 1e-3, 5)
+
+
+def test_identify_names_the_bad_sample():
+    y = np.ones((6, 2, 3))
+    tau = np.ones((6, 2))
+    tau[4, 1] = np.nan
+    with pytest.raises(jaxskid.InputError, match=r"identify: tau\[4, 1\] is nan"):
+        jaxskid.identify(y, tau)
+
+
+def test_checks_are_skipped_inside_a_trace_and_when_turned_off(ur5):
+    """Under jit the values are tracers: nothing is checked, NaN flows as IEEE arithmetic says."""
+    q = jnp.zeros(ur5.n_dof).at[2].set(jnp.nan)  # M depends on q[1:], not on the vertical first joint
+    assert np.isnan(np.asarray(jax.jit(ur5.mass_matrix)(q))).any()
+    plain = jaxskid.lower(jaxskid.load(UR5), ["mass_matrix", "inverse_dynamics", "forward_dynamics"], checks=False)
+    assert np.isnan(np.asarray(plain.mass_matrix(q))).any()
+    plain.mass_matrix(np.zeros(ur5.n_dof), params={"upper_arm_link_m": -9.0})  # no check: runs
+
+
+# ---------------------------------------------------------------- names and shapes
+
+
+def test_misspelt_names_get_a_suggestion(ur5):
+    robot = jaxskid.load(ROBOTS_DIR / "arm_2r.yaml")
+    with pytest.raises(jaxskid.RequestError, match=r"unknown quantity 'mass_matrx' \(did you mean 'mass_matrix'"):
+        jaxskid.lower(robot, ["mass_matrx"])
+    name = robot.parameters[0]
+    with pytest.raises(jaxskid.ModelError, match=rf"did you mean '{name}'"):
+        jaxskid.lower(robot, ["mass_matrix"], symbolic=[name[:-1] + "x" + name[-1]])
+    with pytest.raises(TypeError, match=r"mass_matrix: unexpected keyword argument 'parms' \(did you mean 'params'"):
+        ur5.mass_matrix(np.zeros(ur5.n_dof), parms=None)
+
+
+def test_one_velocity_broadcasts_against_a_batch_of_positions(ur5):
+    n, rng = ur5.n_dof, np.random.default_rng(1)
+    q, qd, qdd = rng.standard_normal((5, n)), rng.standard_normal(n), rng.standard_normal((1, n))
+    tau = np.asarray(ur5.inverse_dynamics(q, qd, qdd))
+    each = np.stack([np.asarray(ur5.inverse_dynamics(q[i], qd, qdd[0])) for i in range(5)])
+    np.testing.assert_allclose(tau, each, rtol=1e-13, atol=1e-12)
+    with pytest.raises(jaxskid.ShapeError, match=r"qd: batch \(3,\) does not broadcast with the batch \(5,\)"):
+        ur5.inverse_dynamics(q, rng.standard_normal((3, n)), qdd)
+
+
+def test_repr_of_a_robot_is_one_short_line():
+    text = repr(jaxskid.load(UR5))
+    assert "\n" not in text and len(text) < 200
+    assert "'ur5'" in text and "n_dof=6" in text and "6 revolute" in text and "parameters=60" in text
