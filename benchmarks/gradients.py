@@ -24,8 +24,8 @@ direction (the column "check": their relative difference):
 - ``ur5_pd_gravity``: the UR5 tracking a reference for 1000 RK4 steps of 1 ms under a hand-written policy that
   closes over the parameters: PD plus gravity compensation ``dyn.gravity_torques(q, p)`` (adaptive control);
 - ``ur5_pdgravity``: the same law as :class:`jaxskid.PDGravity`;
-- ``panda_computed_torque``: the Panda (fingers locked) under :class:`jaxskid.ComputedTorque` with the same
-  parameters, 1000 steps;
+- ``panda_computed_torque``: the Panda (fingers locked) under :class:`jaxskid.ComputedTorque` whose model is the
+  parameters (the plant keeps its defaults, so the loss measures the model's mismatch), 1000 steps;
 - ``solo12_contact``: solo12 with a floating base dropped on :class:`jaxskid.GroundContact`, joints held by PD,
   500 steps of 0.5 ms, a batch of ``--batch`` drops;
 - ``four_bar``: the four-bar loop (``robots/four_bar.yaml``, Baumgarte-stabilised), the crank driven by a torque
@@ -137,15 +137,18 @@ def _scene(name: str, batch: int):
                     return kp * (qr - x[:n]) + kd * (vr - x[n:]) + dyn.gravity_torques(x[:n], p)
             elif name == "ur5_pdgravity":
                 controls = jaxskid.PDGravity(dyn, reference, kp, kd, params=p)
-            else:
+            else:  # the controller's model is p, the plant keeps the defaults: the loss measures the mismatch
                 controls = jaxskid.ComputedTorque(dyn, reference, kp, kd, params=p)
-            traj = jaxskid.rollout(dyn, x0, controls, 1e-3, steps, params=p)
+            plant = None if name == "panda_computed_torque" else p
+            traj = jaxskid.rollout(dyn, x0, controls, 1e-3, steps, params=plant)
             return jnp.mean((traj.q - jax.vmap(reference)(traj.t)) ** 2)
 
         return loss, dyn.param_vector(), n, len(dyn.parameters), steps, 1
     if name == "solo12_contact":
         robot = jaxskid.load(erd / "solo_description/robots/solo12.urdf", floating_base=True)
-        dyn = jaxskid.lower(robot, ["forward_dynamics", *jaxskid.apps._contact.NEEDED])
+        from jaxskid.apps._contact import NEEDED
+
+        dyn = jaxskid.lower(robot, ["forward_dynamics", *NEEDED])
         stand = jnp.asarray([0, 0.8, -1.6, 0, 0.8, -1.6, 0, -0.8, 1.6, 0, -0.8, 1.6])
 
         def hold(t, x):

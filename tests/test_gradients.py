@@ -146,3 +146,88 @@ def test_bad_autodiff_is_a_clear_error(arm):
     _, dyn, x0, u = arm
     with pytest.raises(jaxskid.RequestError, match="autodiff must be one of"):
         jaxskid.rollout(dyn, x0, u, DT, STEPS, autodiff="backward")
+
+
+# ---------------------------------------------------------------- closed loop: the feedback step's backward pass
+
+
+def _reference(t):
+    return 0.3 * jnp.sin(3.0 * t) * jnp.asarray([1.0, -0.5, 0.8])
+
+
+def _feedback_loss(dyn, autodiff="reverse"):
+    """A PD law towards a moving reference with gravity compensation from the same parameters, closing over
+    the gains ``kp`` and the parameters ``p``; the loss reads the states and the applied torques."""
+    rnea = dyn.raw("inverse_dynamics")
+
+    def loss(p, kp, dt):
+        n = dyn.n_dof
+
+        def policy(t, x):
+            q, qd = x[:n], x[n:]
+            return kp * (_reference(t) - q) - 0.2 * qd + rnea(q, jnp.zeros_like(q), jnp.zeros_like(q), p)
+
+        traj = jaxskid.rollout(dyn, X0_FB, policy, dt, STEPS, params=p, autodiff=autodiff)
+        return jnp.sum(jnp.sin(traj.x) * jnp.arange(1, 2 * n + 1)[None, :]) + 1e-3 * jnp.sum(traj.tau**2)
+
+    return loss
+
+
+X0_FB = jnp.asarray([0.4, -0.6, 0.2, 0.5, 0.0, -1.0])
+KP = jnp.asarray([2.0, 1.5, 1.0])
+
+
+def test_feedback_gradient_matches_central_differences_and_forward_mode(arm):
+    _, dyn, _, _ = arm
+    p, dt = dyn.param_vector(), jnp.asarray(DT)
+    loss = jax.jit(_feedback_loss(dyn))
+    grads = jax.jit(jax.grad(_feedback_loss(dyn), argnums=(0, 1, 2)))(p, KP, dt)
+    refs = (_central(lambda v: loss(v, KP, dt), p), _central(lambda v: loss(p, v, dt), KP),
+            _central(lambda v: loss(p, KP, v), dt))
+    for g, ref, what in zip(grads, refs, ("params", "gains", "dt")):
+        np.testing.assert_allclose(g, ref, rtol=1e-6, atol=1e-7 * np.abs(ref).max(), err_msg=what)
+    forward = jax.jacfwd(_feedback_loss(dyn, "forward"), argnums=(0, 1, 2))(p, KP, dt)  # stage by stage
+    for a, b in zip(grads, forward):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12 * np.abs(b).max())
+
+
+def _complex_feedback_rollout(rec, p, kp, dt):
+    """RK4 under the same PD law over the numeric recursive dynamics, in complex arithmetic."""
+    n = 3
+
+    def f(t, x):
+        q, qd = x[:n], x[n:]
+        tau = kp * (_reference(t) - q) - 0.2 * qd + rec.inverse_dynamics(q, 0 * q, 0 * q, p)
+        bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p)
+        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)]), tau
+
+    def step(x, k):
+        t = k * dt
+        k1, tau = f(t, x)
+        k2, _ = f(t + dt / 2, x + dt / 2 * k1)
+        k3, _ = f(t + dt / 2, x + dt / 2 * k2)
+        k4, _ = f(t + dt, x + dt * k3)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, (x, tau)
+
+    _, (xs, taus) = jax.lax.scan(step, X0_FB.astype(complex), jnp.arange(STEPS, dtype=complex))
+    x = jnp.concatenate([X0_FB[None].astype(complex), xs])
+    return jnp.sum(jnp.sin(x) * jnp.arange(1, 2 * n + 1)[None, :]) + 1e-3 * jnp.sum(taus**2)
+
+
+@pytest.mark.slow
+def test_feedback_gradient_matches_complex_step_of_an_independent_rollout(arm):
+    robot, dyn, _, _ = arm
+    rec = recursive_dynamics(robot)
+    p, dt = dyn.param_vector(), jnp.asarray(DT)
+    run = jax.jit(lambda p, kp, dt: _complex_feedback_rollout(rec, p, kp, dt))
+    base = [jnp.asarray(a, complex) for a in (p, KP, dt)]
+    np.testing.assert_allclose(_feedback_loss(dyn)(p, KP, dt), jnp.real(run(*base)), rtol=1e-12)
+    grads = jax.grad(_feedback_loss(dyn), argnums=(0, 1, 2))(p, KP, dt)
+    h, pick = 1e-30, np.random.default_rng(1)
+    for arg, g in enumerate(grads):
+        for k in pick.choice(g.size, size=min(g.size, 5), replace=False):
+            args = list(base)
+            args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
+            ref = float(jnp.imag(run(*args))) / h
+            np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))

@@ -1,5 +1,5 @@
-"""The backward pass of an RK4 step under a held torque as one native call (jaxskid.runtime._rk4,
-jaxskid.lowering._ffi_rk4).
+"""The backward pass of an RK4 step under a held torque, or under feedback from a controller, as one native call
+(jaxskid.runtime._rk4, jaxskid.lowering._ffi_rk4).
 
 Its cotangents with respect to q, qd, tau, the parameters and the step size are checked against JAX's reverse
 mode through the same step written stage by stage (``RK4.step`` over forward dynamics with its forward-mode
@@ -18,7 +18,7 @@ from helpers import load
 import jaxskid
 from jaxskid.apps._integrators import RK4
 from jaxskid.runtime._forward import accelerations
-from jaxskid.runtime._rk4 import held_torque_rk4
+from jaxskid.runtime._rk4 import feedback_rk4, held_torque_rk4
 
 
 @pytest.fixture(scope="module", params=["arm_3dof", "hopping_leg"])
@@ -140,3 +140,95 @@ def test_checkpointed_rollout_gradient_keeps_less(dyn):
         np.testing.assert_allclose(temp[steps, False][1], temp[steps, True][1], rtol=1e-12, atol=0)
     assert temp[1600, True][0] > 3.5 * temp[400, True][0]  # every step kept: linear
     assert temp[1600, False][0] < 2.2 * temp[400, False][0]  # blocks of steps: about sqrt
+
+
+# ---------------------------------------------------------------- under feedback
+
+
+def _control(t, x, kp, p_scale):
+    """A nonlinear law of time, state, gains and a scale: ``kp (sin(t) - q) - 0.3 qd + p_scale sin(q) qd``."""
+    n = x.shape[-1] // 2
+    q, qd = x[:n], x[n:]
+    return kp * (jnp.sin(t) - q) - 0.3 * qd + p_scale * jnp.sin(q) * qd
+
+
+def _feedback_reference(dyn):
+    qdd = accelerations(dyn, False, "forward")
+
+    def step(q, qd, p, h, t, kp, scale):
+        def f(s, y):
+            tau = _control(s, jnp.concatenate(y), kp, scale)
+            return (y[1], qdd(y[0], y[1], tau, p)), tau
+
+        (q1, qd1), tau = RK4().step(f, t, (q, qd), h)
+        return q1, qd1, tau
+
+    return step
+
+
+def _feedback_args(dyn, seed=0, batch=()):
+    rng = np.random.default_rng(seed)
+    n = dyn.n_dof
+    q, qd = (jnp.asarray(rng.uniform(-1.5, 1.5, (*batch, n))) for _ in range(2))
+    return q, qd, dyn.param_vector(), jnp.asarray(0.01), jnp.asarray(0.3), jnp.asarray(rng.uniform(1, 3, n)), \
+        jnp.asarray(0.7)
+
+
+def test_feedback_step_and_its_cotangents_match_jax_reverse_mode(dyn, monkeypatch):
+    """Cotangents of q, qd, the parameters, the step, the time and the controller's gains and scale (the first
+    stage's torque is an output too), against JAX's reverse mode stage by stage; then the JAX fallback."""
+    step, ref = feedback_rk4(dyn, False), _feedback_reference(dyn)
+    args = _feedback_args(dyn)
+
+    def fused(q, qd, p, h, t, kp, scale):
+        return step(_control, q, qd, p, h, t, (kp, scale))
+
+    y, vjp = jax.vjp(fused, *args)
+    y_ref, vjp_ref = jax.vjp(ref, *args)
+    _close(y, y_ref, 1e-14)
+    rng = np.random.default_rng(1)
+    g = tuple(jnp.asarray(rng.normal(size=dyn.n_dof)) for _ in range(3))
+    want = vjp_ref(g)
+    _close(jax.jit(vjp)(g), want, 1e-10)
+    monkeypatch.setattr(dyn, "native_target", lambda name="fd_vjp": None)
+    step = feedback_rk4(dyn, False)
+    _close(jax.vjp(fused, *args)[1](g), want, 1e-10)
+
+
+def test_feedback_step_in_a_batch_and_in_float32(dyn):
+    step, ref = feedback_rk4(dyn, True), _feedback_reference(dyn)
+    q, qd, p, h, t, kp, scale = _feedback_args(dyn, seed=2, batch=(7,))
+    w = jnp.asarray(np.random.default_rng(3).normal(size=(7, dyn.n_dof)))
+
+    def loss(which, q, qd, p, h, kp):
+        run = (lambda *a: step(_control, *a[:5], (a[5], scale))) if which == "fused" else \
+            (lambda *a: ref(*a, scale))
+        q1, qd1, tau = jax.vmap(run, (0, 0, None, None, None, None))(q, qd, p, h, t, kp)
+        return jnp.sum(w * q1) + jnp.sum(w * qd1**2) + jnp.sum(w * tau)
+
+    grad = jax.jit(jax.grad(loss, argnums=(1, 2, 3, 4, 5)), static_argnums=0)
+    want = grad("reference", q, qd, p, h, kp)
+    _close(grad("fused", q, qd, p, h, kp), want, 1e-10)
+    got32 = grad("fused", *(x.astype(jnp.float32) for x in (q, qd, p, h, kp)))
+    assert all(x.dtype == jnp.float32 for x in got32)
+    _close(got32, want, 2e-3)
+
+
+def test_a_closed_loop_rollout_gradient_calls_it_once_per_step(dyn):
+    """A policy closing over traced gains: the compiled gradient holds one call of the feedback kernel and
+    none of the per-stage one; the gains' gradient agrees with central differences."""
+    n, steps = dyn.n_dof, 6
+    x0 = jnp.asarray(np.random.default_rng(5).uniform(-1, 1, 2 * n))
+
+    def loss(kp):
+        traj = jaxskid.rollout(dyn, x0, lambda t, x: _control(t, x, kp, 0.5), 0.01, steps)
+        return jnp.sum(traj.x**2)
+
+    kp = jnp.full(n, 2.0)
+    text = jax.jit(jax.grad(loss)).lower(kp).as_text()
+    assert text.count("jaxskid_rk4fb_vjp") == 1 and "jaxskid_fd_vjp" not in text
+    g, eps = jax.jit(jax.grad(loss))(kp), 1e-6
+    for k in range(n):
+        e = jnp.zeros(n).at[k].set(eps)
+        fd = (float(loss(kp + e)) - float(loss(kp - e))) / (2 * eps)
+        assert abs(float(g[k]) - fd) < 1e-6 * max(1.0, abs(fd))

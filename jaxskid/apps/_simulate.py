@@ -35,7 +35,7 @@ from ..runtime._implicit import AUTODIFF
 from ..runtime._checks import check_finite
 from ..runtime._jit import forward_mode, jit, top_level, traced
 from ..runtime._free_flyer import normalize
-from ..runtime._rk4 import held_torque_rk4
+from ..runtime._rk4 import feedback_rk4, held_torque_rk4
 from ..runtime._constrained import Baumgarte
 from ._field import as_controls, constraint_forces, dynamics_field, with_input
 from ._integrators import RK4, fixed_step
@@ -90,14 +90,22 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
     rows = controller is None and u is not None  # the torques are the rows of u
     record = not rows and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
     # open-loop torques on a fixed base: an RK4 step whose backward pass is one native call
-    fused = held_torque_rk4(dyn, batched) if rows and constraints is None and autodiff == "reverse" and \
-        type(integrator) is RK4 else None
+    one_call = constraints is None and autodiff == "reverse" and type(integrator) is RK4
+    fused = held_torque_rk4(dyn, batched) if rows and one_call else None
+    # a stateless feedback law: its step's backward pass is one native call too
+    stateless = controller is not None and u is None and not jax.tree.leaves(z0)
+    feedback = feedback_rk4(dyn, batched) if one_call and stateless else None
 
     def step(carry, u_k):
         k, q, qd, z = carry
         if fused is not None:
             q1, qd1 = fused(q, qd, u_k, p, dt)
             return (k + 1, q1, qd1, z), ()
+        if feedback is not None:
+            t = k.astype(dt.dtype) * dt
+            control, consts = jax.closure_convert(lambda t, x: controller(t, x, ())[0], t, jnp.concatenate([q, qd]))
+            q1, qd1, tau = feedback(control, q, qd, p, dt, t, consts)
+            return (k + 1, q1, qd1, z), (tau if record else ())
         (q1, qd1, z1), tau = integrator.step(with_input(f, u_k), k.astype(dt.dtype) * dt, (q, qd, z), dt)
         return (k + 1, normalize(q1, floating), qd1, z1), (tau if record else ())
 

@@ -81,7 +81,8 @@ def check_inertias(robot, source: str | None = None, where: Callable[[int], str]
     if not moving and not robot.floating_base:
         return
     if scale == 0.0:
-        raise ModelError("every body has zero mass and zero inertia; the equations of motion are empty",
+        links = ", ".join(repr(j.link) for j in joints)
+        raise ModelError(f"every body ({links}) has zero mass and zero inertia; the equations of motion are empty",
                          source=source)
     rng = np.random.default_rng(0)
     configurations = [np.zeros(len(joints))] + [rng.uniform(-np.pi, np.pi, len(joints))

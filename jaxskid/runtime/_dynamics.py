@@ -121,7 +121,7 @@ class Dynamics(QuantitySet):
             build = functools.partial(native, lib)
             self._native_build.update({k[0]: build for k in lib["kernels"]})
             if lib["backward"]:
-                self._native_build.update(fd_vjp=build, rk4_vjp=build)
+                self._native_build.update(fd_vjp=build, rk4_vjp=build, rk4fb_vjp=build)
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
 

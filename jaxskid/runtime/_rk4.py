@@ -7,6 +7,13 @@ between them, each a few microseconds at batch 1. :func:`held_torque_rk4` keeps 
 (a ``lax.scan`` over the stages, the same sums in the same order) and gives the step a ``jax.custom_vjp``
 whose backward pass is one call, with the same recursion in JAX as the fallback off CPU and for derivatives
 of the gradient.
+
+:func:`feedback_rk4` does the same for a step under feedback, ``tau_i = u(t_i, x_i)`` at every stage (a policy
+or a stateless :class:`~jaxskid.Controller` written in JAX, closing over whatever it likes). The controller's
+Jacobian ``K_i = du/dx`` at the four stages (one batched forward-mode pass) enters the native recursion, which
+returns each stage's torque cotangent ``lambda_i``; the controller's vector-Jacobian product with respect to
+its closed-over values (gains, parameters) and the stage times is then one batched reverse pass over the four
+stages, instead of four differentiated stages with a backward step each.
 """
 
 from __future__ import annotations
@@ -25,6 +32,59 @@ B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
 C = (0.0, 0.5, 0.5, 1.0)
 
 
+def _recursion(stage_backward, n: int, qs, qds, accs, ks, p, h, gq, gqd):
+    """The native kernels' recursion in JAX (``jaxskid_rk4_vjp``, and ``jaxskid_rk4fb_vjp`` with the stages'
+    controller Jacobians ``ks`` ``(4, n, 2n)``; ``None``: a held torque): a scan from the last stage, giving
+    ``(ybar_q, ybar_qd, lambda (4, n), pbar, hbar)``."""
+
+    def stage(carry, x):
+        nq, nqd, yq, yqd, pbar, hbar = carry
+        qi, qdi, ai, k, qd_prev, a_prev, b, c, c_next = x
+        kq, kqd = h * b * gq + h * c_next * nq, h * b * gqd + h * c_next * nqd
+        lam, w = stage_backward(qi, qdi, ai, kqd, p)
+        nq, nqd = w[:n], kq + w[n:2 * n]
+        if k is not None:
+            nq, nqd = nq + lam @ k[:, :n], nqd + lam @ k[:, n:]
+        hbar = hbar + b * (gq @ qdi + gqd @ ai) + c * (nq @ qd_prev + nqd @ a_prev)
+        return (nq, nqd, yq + nq, yqd + nqd, pbar + w[2 * n:], hbar), lam
+
+    def earlier(x):  # stage i's row holds stage i-1's (zero before the first, where c = 0)
+        return jnp.concatenate([jnp.zeros_like(x[:1]), x[:-1]])
+
+    dtype = gq.dtype
+    xs = (qs, qds, accs, ks, earlier(qds), earlier(accs), jnp.asarray(B, dtype), jnp.asarray(C, dtype),
+          jnp.asarray((*C[1:], 0.0), dtype))
+    zero = jnp.zeros_like(gq)
+    carry = (zero, zero, gq, gqd, jnp.zeros_like(p), jnp.zeros_like(h))
+    (_, _, yq, yqd, pbar, hbar), lams = jax.lax.scan(stage, carry, xs, reverse=True)
+    return yq, yqd, lams, pbar, hbar
+
+
+def _stages(qdd, q, qd, p, h, torque):
+    """The four stages of RK4 from ``(q, qd)`` (the integrator's sums, in its order), the stage ``i``'s torque
+    ``torque(c_i)``: ``((q1, qd1), (q_i, qd_i, a_i, tau_i))``, the stages stacked ``(4, n)``."""
+
+    def stage(carry, cb):
+        (kq, kqd), (aq, aqd) = carry
+        c, b = cb
+        qi, qdi = q + c * h * kq, qd + c * h * kqd
+        tau = torque(c, qi, qdi)
+        ai = qdd(qi, qdi, tau, p)
+        return ((qdi, ai), (aq + b * qdi, aqd + b * ai)), (qi, qdi, ai, tau)
+
+    zero = jnp.zeros_like(qd)
+    cb = (jnp.asarray(C, qd.dtype), jnp.asarray(B, qd.dtype))
+    (_, (aq, aqd)), saved = jax.lax.scan(stage, ((zero, zero), (zero, zero)), cb)
+    return (q + h * aq, qd + h * aqd), saved
+
+
+def _kernels(dyn, batched: bool):
+    """``(qdd, stage_backward)``: forward dynamics with its forward-mode rule (for gradients of the gradient)
+    and the backward step of forward dynamics in JAX."""
+    qdd = accelerations(dyn, batched, "forward")
+    return qdd, backward_kernel(mass_solver(dyn), dyn.generated("inverse_dynamics_vjp", batched))
+
+
 def held_torque_rk4(dyn, batched: bool) -> Callable | None:
     """``step(q, qd, tau, p, h) -> (q1, qd1)``, one RK4 step of ``h`` under the torque ``tau``, differentiable
     in reverse mode with respect to all five; None where the native kernel is not to be had (a floating
@@ -34,50 +94,19 @@ def held_torque_rk4(dyn, batched: bool) -> Callable | None:
     if dyn.floating_base or not dyn.native_planned("rk4_vjp"):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
-    qdd = accelerations(dyn, batched, "forward")  # its forward-mode rule: for gradients of the gradient
-    stage_backward = backward_kernel(mass_solver(dyn), dyn.generated("inverse_dynamics_vjp", batched))
+    qdd, stage_backward = _kernels(dyn, batched)
 
-    def stages(q, qd, tau, p, h):
-        def stage(carry, cb):
-            (kq, kqd), (aq, aqd) = carry
-            c, b = cb
-            qi, qdi = q + c * h * kq, qd + c * h * kqd
-            ai = qdd(qi, qdi, tau, p)
-            return ((qdi, ai), (aq + b * qdi, aqd + b * ai)), (qi, qdi, ai)
-
-        zero = jnp.zeros_like(qd)
-        cb = (jnp.asarray(C, qd.dtype), jnp.asarray(B, qd.dtype))
-        (_, (aq, aqd)), saved = jax.lax.scan(stage, ((zero, zero), (zero, zero)), cb)
-        return (q + h * aq, qd + h * aqd), saved
-
-    def recursion(qs, qds, accs, p, h, gq, gqd):  # the native kernel's, in JAX: a scan from the last stage
-        def stage(carry, x):
-            nq, nqd, yq, yqd, taubar, pbar, hbar = carry
-            qi, qdi, ai, qd_prev, a_prev, b, c, c_next = x
-            kq, kqd = h * b * gq + h * c_next * nq, h * b * gqd + h * c_next * nqd
-            lam, w = stage_backward(qi, qdi, ai, kqd, p)
-            nq, nqd = w[:n], kq + w[n:2 * n]
-            hbar = hbar + b * (gq @ qdi + gqd @ ai) + c * (nq @ qd_prev + nqd @ a_prev)
-            return (nq, nqd, yq + nq, yqd + nqd, taubar + lam, pbar + w[2 * n:], hbar), None
-
-        def earlier(x):  # stage i's row holds stage i-1's (zero before the first, where c = 0)
-            return jnp.concatenate([jnp.zeros_like(x[:1]), x[:-1]])
-
-        dtype = gq.dtype
-        xs = (qs, qds, accs, earlier(qds), earlier(accs), jnp.asarray(B, dtype), jnp.asarray(C, dtype),
-              jnp.asarray((*C[1:], 0.0), dtype))
-        zero = jnp.zeros_like(gq)
-        carry = (zero, zero, gq, gqd, zero, jnp.zeros_like(p), jnp.zeros_like(h))
-        (_, _, yq, yqd, taubar, pbar, hbar), _ = jax.lax.scan(stage, carry, xs, reverse=True)
-        return jnp.concatenate([yq, yqd, taubar, pbar, hbar[None]])
+    def recursion(qs, qds, accs, p, h, gq, gqd):
+        yq, yqd, lams, pbar, hbar = _recursion(stage_backward, n, qs, qds, accs, None, p, h, gq, gqd)
+        return jnp.concatenate([yq, yqd, lams.sum(axis=0), pbar, hbar[None]])
 
     @jax.custom_vjp
     def step(q, qd, tau, p, h):
-        return stages(q, qd, tau, p, h)[0]
+        return _stages(qdd, q, qd, p, h, lambda c, qi, qdi: tau)[0]
 
     def fwd(q, qd, tau, p, h):
-        y, saved = stages(q, qd, tau, p, h)
-        return y, (*saved, p, h)
+        y, saved = _stages(qdd, q, qd, p, h, lambda c, qi, qdi: tau)
+        return y, (*saved[:3], p, h)
 
     def bwd(res, g):
         qs, qds, accs, p, h = res
@@ -85,6 +114,56 @@ def held_torque_rk4(dyn, batched: bool) -> Callable | None:
         kernel = recursion if target is None else native_call(target, (3 * n + n_params + 1,), recursion)
         out = kernel(qs, qds, accs, p, h, *g)
         return out[:n], out[n:2 * n], out[2 * n:3 * n], out[3 * n:3 * n + n_params], out[-1].reshape(jnp.shape(h))
+
+    step.defvjp(fwd, bwd)
+    return step
+
+
+def feedback_rk4(dyn, batched: bool) -> Callable | None:
+    """``step(control, q, qd, p, h, t, consts) -> (q1, qd1, tau0)``: one RK4 step of ``h`` from time ``t`` under
+    the feedback ``tau = control(t, x, *consts)`` at every stage (``x = (q, qd)``; ``tau0``: the first stage's
+    torque), differentiable in reverse mode with respect to all but ``control`` (module docstring).
+    ``control`` is a function without closed-over tracers (:func:`jax.closure_convert` hoists them into
+    ``consts``). None where the native kernel is not to be had (as :func:`held_torque_rk4`)."""
+    if dyn.floating_base or not dyn.native_planned("rk4fb_vjp"):
+        return None
+    n, n_params = dyn.nv, len(dyn.parameters)
+    qdd, stage_backward = _kernels(dyn, batched)
+
+    def recursion(qs, qds, accs, ks, p, h, gq, gqd):
+        yq, yqd, lams, pbar, hbar = _recursion(stage_backward, n, qs, qds, accs, ks, p, h, gq, gqd)
+        return jnp.concatenate([yq, yqd, lams.ravel(), pbar, hbar[None]])
+
+    def run(control, q, qd, p, h, t, consts):
+        def torque(c, qi, qdi):
+            return control(t + c * h, jnp.concatenate([qi, qdi]), *consts)
+
+        (q1, qd1), saved = _stages(qdd, q, qd, p, h, torque)
+        return (q1, qd1, saved[3][0]), saved
+
+    step = jax.custom_vjp(lambda control, *args: run(control, *args)[0], nondiff_argnums=(0,))
+
+    def fwd(control, q, qd, p, h, t, consts):
+        y, (qs, qds, accs, _) = run(control, q, qd, p, h, t, consts)
+        return y, (qs, qds, accs, p, h, t, consts)
+
+    def bwd(control, res, g):
+        qs, qds, accs, p, h, t, consts = res
+        gq, gqd, gtau = g
+        ts, xs = t + jnp.asarray(C, h.dtype) * h, jnp.concatenate([qs, qds], axis=-1)
+
+        def stage_torques(ts, consts):
+            return jax.vmap(lambda ti, xi: control(ti, xi, *consts))(ts, xs)
+
+        ks = jax.vmap(jax.jacfwd(lambda ti, xi: control(ti, xi, *consts), argnums=1))(ts, xs)
+        target = dyn.native_target("rk4fb_vjp")
+        kernel = recursion if target is None else native_call(target, (6 * n + n_params + 1,), recursion)
+        out = kernel(qs, qds, accs, ks, p, h, gq, gqd)
+        yq, yqd = out[:n] + gtau @ ks[0, :, :n], out[n:2 * n] + gtau @ ks[0, :, n:]
+        lams = out[2 * n:6 * n].reshape(4, n).at[0].add(gtau)  # the first stage's torque is an output too
+        tbar, cbar = jax.vjp(stage_torques, ts, consts)[1](lams)
+        hbar = out[-1] + jnp.asarray(C, h.dtype) @ tbar
+        return yq, yqd, out[6 * n:6 * n + n_params], hbar.reshape(jnp.shape(h)), tbar.sum().reshape(jnp.shape(t)), cbar
 
     step.defvjp(fwd, bwd)
     return step
