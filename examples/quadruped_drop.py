@@ -9,7 +9,10 @@ regularised Coulomb friction). Each of the 1024 rollouts starts 2-10 cm higher t
 push (base velocity up to 0.5 m/s and 1 rad/s), and RK4 at 0.5 ms runs 3 s. The script reports how many came to
 rest standing (the normal forces carry the weight, every speed small), the spread of the final base height, the
 quaternion norm after 6000 steps, and saves a figure: base height over time, and the final normal force per foot
-against the quarter weight.
+against the quarter weight. It also checks that the step integrates the drops stably: the mechanical energy
+(kinetic, gravitational, the contact springs' and the joint PD springs') can only fall once the feet touch, as
+every force but gravity and the springs dissipates, and rollout's own check (:class:`jaxskid.RolloutWarning`)
+says nothing.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from jaxskid.apps._contact import NEEDED  # noqa: E402
 
 STAND = np.array([0, 0.8, -1.6, 0, 0.8, -1.6, 0, -0.8, 1.6, 0, -0.8, 1.6])  # hip, thigh, knee per leg [rad]
 KP, KD = 20.0, 0.5  # joint PD [N m/rad], [N m s/rad]
@@ -56,6 +60,19 @@ def initial_states(robot, batch: int, rng) -> np.ndarray:
     return np.concatenate([q, v], axis=1)
 
 
+def mechanical_energy(dyn, robot, contact, x) -> tuple[np.ndarray, np.ndarray]:
+    """``(E, touched)`` at the saved states ``x (batch, saved, nq + nv)``: kinetic + gravitational energy + the
+    contact springs' ``k d^2 / 2`` + the joint springs' ``KP |STAND - q|^2 / 2``, and whether a foot has touched
+    the ground by then."""
+    q, v = x[..., :robot.nq], x[..., robot.nq:]
+    depth = jax.vmap(jax.vmap(lambda q: contact.height - contact.forces(q, jnp.zeros(robot.nv))[0][:, 2]))(q)
+    springs = 0.5 * contact.k * jnp.sum(jnp.maximum(depth, 0.0) ** 2, axis=-1)
+    joints = 0.5 * KP * jnp.sum((STAND - q[..., 7:]) ** 2, axis=-1)
+    energy = dyn.kinetic_energy(q, v) + dyn.potential_energy(q) + springs + joints
+    touched = np.maximum.accumulate(np.asarray(depth.max(axis=-1)) > 0, axis=1)
+    return np.asarray(energy), touched
+
+
 def plot(path: Path, t, height, forces, weight) -> Path:
     import matplotlib
 
@@ -81,7 +98,7 @@ def plot(path: Path, t, height, forces, weight) -> Path:
 def main(out_dir=None, batch=1024, seed=0) -> dict:
     start = time.perf_counter()
     robot = jaxskid.load(solo12_urdf(), floating_base=True)
-    dyn = jaxskid.lower(robot, ["forward_dynamics", *jaxskid.apps._contact.NEEDED])
+    dyn = jaxskid.lower(robot, ["forward_dynamics", "kinetic_energy", "potential_energy", *NEEDED])
     weight = 9.81 * sum(v for k, v in robot.default_params().items() if k.endswith("_m"))
 
     def stand(t, x):
@@ -100,6 +117,8 @@ def main(out_dir=None, batch=1024, seed=0) -> dict:
     settled = (np.abs(forces.sum(axis=1) - weight) <= 0.01 * weight) & (np.abs(vf).max(axis=1) <= 1e-2)
     settled &= (forces > 0).all(axis=1)
     quat = np.abs(np.linalg.norm(x[..., 3:7], axis=-1) - 1).max()
+    energy, touching = mechanical_energy(dyn, robot, contact, x)
+    rise = np.where(touching[:, :-1], np.diff(energy, axis=1), -np.inf).max() / (weight * 0.1)
     figure = plot(output_dir(out_dir) / "quadruped_drop.png", np.asarray(traj.t), x[..., 2], forces, weight)
     print(f"solo12 with a floating base: nq {robot.nq}, nv {robot.nv}, feet {', '.join(dyn.end_effectors)}")
     print(f"{batch} pushed drops, {steps} RK4 steps of {DT * 1e3:.1f} ms: {elapsed:.1f} s "
@@ -107,10 +126,12 @@ def main(out_dir=None, batch=1024, seed=0) -> dict:
     print(f"settled standing (normal forces = weight within 1 %, speeds < 0.01): {settled.sum()} of {batch}")
     print(f"final base height {np.median(qf[:, 2]):.4f} m (spread {np.ptp(qf[:, 2]) * 1e3:.2f} mm); "
           f"max | |quat| - 1 | {quat:.1e}")
+    print(f"largest rise of the mechanical energy after touchdown: {rise:.1e} of weight x 10 cm")
     print(f"done in {time.perf_counter() - start:.1f} s; figure {figure}")
     return {"settled": int(settled.sum()), "batch": batch, "quaternion_error": float(quat),
             "load_error": float(np.abs(forces.sum(axis=1) / weight - 1).max()),
-            "height_spread": float(np.ptp(qf[:, 2])), "seconds": elapsed, "figure": figure}
+            "height_spread": float(np.ptp(qf[:, 2])), "energy_rise": float(rise), "seconds": elapsed,
+            "figure": figure}
 
 
 if __name__ == "__main__":

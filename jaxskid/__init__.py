@@ -50,6 +50,7 @@ if TYPE_CHECKING:  # the same names for type checkers and editors (tests/test_la
     from .apps._energy_id import EnergyBalance, energy_balance, momentum_balance
     from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
     from .apps._contact import GroundContact
+    from .apps._health import RolloutWarning, StepStability, step_stability
     from .apps._excitation import ExcitationResult, FourierTrajectory, design_excitation
     from .apps._parameterizations import nearest_consistent
     from .apps._signals import estimate_derivatives, lowpass, parallel_filter, quantize
@@ -89,6 +90,7 @@ _EXPORTS = {  # module -> the public names it defines (a submodule's own name: t
     ".apps._energy_id": "EnergyBalance energy_balance momentum_balance",
     ".apps._control": "ComputedTorque PDGravity SlotineLi mixed_regressor reference_derivatives",
     ".apps._contact": "GroundContact",
+    ".apps._health": "RolloutWarning StepStability step_stability",
     ".apps._excitation": "ExcitationResult FourierTrajectory design_excitation",
     ".apps._parameterizations": "nearest_consistent",
     ".apps._signals": "estimate_derivatives lowpass parallel_filter quantize",
@@ -191,6 +193,9 @@ __all__ = [
     "vector_field",
     "ComputedTorque",
     "GroundContact",
+    "RolloutWarning",
+    "StepStability",
+    "step_stability",
     "PDGravity",
     "SlotineLi",
     "mixed_regressor",

@@ -242,3 +242,67 @@ def test_fuzzed_urdf_inertias_load_usable_or_get_a_named_error(tmp_path_factory,
         m = pin.crba(model, data, q)
         m = np.triu(m) + np.triu(m, 1).T
         assert np.linalg.eigvalsh(m)[0] > 0, (ma, mb, a, b, q)
+
+
+# ---------------------------------------------------------------- rollout health
+
+
+@pytest.mark.slow
+def test_an_unstable_step_warns_and_the_step_it_names_settles():
+    """solo12 dropped on compliant ground with joint PD (the quadruped example's gains) at 1 ms: the feet's
+    sticking contact at rest is outside RK4's stability region, the robot chatters and never settles, and the
+    rollout says so, naming the rollouts and a step; at that step, measured, every drop settles (the normal forces
+    carry the weight within 5 %) and nothing is said."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("quadruped_drop", ROBOTS_DIR.parent / "examples/quadruped_drop.py")
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    from jaxskid.apps._contact import NEEDED
+
+    robot = jaxskid.load(example.solo12_urdf(), floating_base=True)
+    dyn = jaxskid.lower(robot, ["forward_dynamics", *NEEDED])
+    stand = jnp.asarray(example.STAND)
+
+    def hold(t, x):
+        q, v = x[:robot.nq], x[robot.nq:]
+        return jnp.concatenate([jnp.zeros(6), example.KP * (stand - q[7:]) - example.KD * v[6:]])
+
+    contact = jaxskid.GroundContact(dyn, inner=hold)
+    x0 = example.initial_states(robot, 8, np.random.default_rng(0))
+    weight = 9.81 * sum(v for k, v in robot.default_params().items() if k.endswith("_m"))
+    with pytest.warns(jaxskid.RolloutWarning, match=r"dt = 0.001 s .* of rollouts 0, 1, .* dt <= ") as record:
+        traj = jaxskid.rollout(dyn, x0, contact, 1e-3, 2000, saveat=jaxskid.SaveAt(every=100))
+    assert np.abs(np.asarray(traj.x[:, -1, robot.nq:])).max() > 0.1  # still moving after 2 s
+    dt = float(re.search(r"dt <= ([0-9.e-]+) s", str(record[0].message)).group(1))
+    assert 2e-4 < dt < 1e-3
+    steps = int(np.ceil(2.0 / dt))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", jaxskid.RolloutWarning)
+        traj = jaxskid.rollout(dyn, x0, contact, dt, steps, saveat=jaxskid.SaveAt(t1=True, t0=False))
+    xf = traj.x[:, -1]
+    normal = np.asarray(jax.vmap(lambda x: contact.forces(x[:robot.nq], x[robot.nq:])[1][:, 2].sum())(xf))
+    assert np.all(np.abs(normal / weight - 1) < 0.05), normal / weight
+    assert np.abs(np.asarray(xf[:, robot.nq:])).max() < 1e-2
+
+
+def test_step_stability_of_a_damped_joint_against_the_closed_form():
+    """The pendulum hanging at rest under a damper: ``m qdd + kd qd + k_g q = 0`` has the eigenvalues
+    ``(-a -+ sqrt(a^2 - 4 b)) / 2`` with ``a = kd / m = 2000`` 1/s and ``b = k_g / m`` (gravity's stiffness); RK4 is
+    stable for ``h |lambda| < 2.7853`` on the real axis; step_stability finds the fast one and that step."""
+    robot = jaxskid.load(ROBOTS_DIR / "single_pendulum.yaml")
+    dyn = jaxskid.lower(robot, ["forward_dynamics"])
+    m = float(np.asarray(dyn.mass_matrix(np.zeros(1)))[0, 0])
+    k_g = float(jax.jacfwd(lambda q: dyn.inverse_dynamics(q, jnp.zeros(1), jnp.zeros(1)))(jnp.zeros(1))[0, 0])
+    kd = 2000.0 * m
+
+    def pd(t, x):
+        return -kd * x[1:]
+
+    a, b = 2000.0, k_g / m
+    fast = (-a - np.sqrt(a * a - 4 * b)) / 2
+    check = jaxskid.step_stability(dyn, pd, np.zeros(2), 2e-3)
+    assert abs(check.fastest.real - fast) < 1e-9 * a
+    assert check.amplification > 1  # 2e-3 * 2000 = 4 > 2.785
+    assert abs(float(check.stable_dt) * abs(fast) - 2.785293563) < 1e-6  # RK4's real stability limit
+    assert jaxskid.step_stability(dyn, pd, np.zeros(2), 1e-3).amplification <= 1

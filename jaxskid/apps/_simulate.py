@@ -192,6 +192,7 @@ def rollout(
     autodiff: str = "auto",
     devices: Sequence[jax.Device] | None = None,
     stabilization: Baumgarte | None = Baumgarte(), regularization: float = 0.0,  # noqa: B008  (frozen dataclass)
+    health: bool | None = None,
 ) -> Trajectory:
     """Simulate ``M qdd + C qd + Q_grav = tau`` from ``x0 = (q0, qd0)`` for ``steps`` steps of ``dt``.
 
@@ -226,6 +227,9 @@ def rollout(
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
             ``jax.devices()``.
         stabilization, regularization: a constrained robot's (module docstring; :func:`constrained_forward_dynamics`).
+        health: check that RK4's step integrates the closed loop at the final states stably, and warn
+            (:class:`RolloutWarning`, naming the rollouts and a step that would) where it does not
+            (:mod:`jaxskid.apps._health`); ``None``: with :class:`GroundContact` only. Called from Python only.
 
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
@@ -241,22 +245,44 @@ def rollout(
     x0, u, dtype = _inputs(dyn, x0, u)
     p = None if params is None else dyn.param_vector(params, dtype)  # None: the defaults, compiled in
     dt = _step(dt, dtype)
-    n, nq = dyn.nv, dyn.nq
-    extras = [("params", (len(dyn.parameters),) if p is None else p.shape, (len(dyn.parameters),)),
-              ("dt", dt.shape, ())]
-    if u is not None:
-        extras.append(("controls", u.shape, (steps, n)))
-    batch = batch_shape("rollout", [("x0", x0.shape, (nq + n,))], extras)
+    batch = _batch(dyn, x0, p, u, dt, steps)
     saveat.block(steps)  # every= must divide steps
     index = None if saveat.ts is None else saveat.steps_of_times(dt, steps, dtype)
     constraints = constraint_forces(dyn, stabilization, regularization, "rollout")
     static = (dyn, controller, integrator, steps, saveat, checkpoint, autodiff, constraints)
     if not batch:
-        return _rollout_single(*static, x0, p, u, dt, index)
-    size = int(np.prod(batch))
-    devices = tuple(devices) if devices is not None else tuple(jax.local_devices())
-    devices = devices[:max(1, min(len(devices), size))]
-    return _rollout_batch(*static, batch, devices, x0, p, u, dt, index)
+        traj = _rollout_single(*static, x0, p, u, dt, index)
+    else:
+        devices = tuple(devices) if devices is not None else tuple(jax.local_devices())
+        devices = devices[:max(1, min(len(devices), int(np.prod(batch))))]
+        traj = _rollout_batch(*static, batch, devices, x0, p, u, dt, index)
+    return _checked(traj, static, controls, dt, params, health)
+
+
+def _batch(dyn, x0, p, u, dt, steps: int) -> tuple:
+    """The batch shape of a rollout's inputs (:func:`~jaxskid.runtime._batching.batch_shape`)."""
+    n, n_params = dyn.nv, (len(dyn.parameters),)
+    extras = [("params", n_params if p is None else p.shape, n_params), ("dt", dt.shape, ())]
+    if u is not None:
+        extras.append(("controls", u.shape, (steps, n)))
+    return batch_shape("rollout", [("x0", x0.shape, (dyn.nq + n,))], extras)
+
+
+def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> Trajectory:
+    """``traj``, after :func:`~jaxskid.apps._health.warn_if_unstable` on its final states where ``health`` asks
+    for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set."""
+    from ._contact import GroundContact
+    from ._health import warn_if_unstable
+
+    dyn, controller, integrator = static[:3]
+    if health is None:
+        health = isinstance(controller, GroundContact)
+    if not health or type(integrator) is not RK4 or not top_level((traj.x, dt)) or np.ndim(dt) or \
+            (params is not None and np.ndim(dyn.param_vector(params)) > 1):
+        return traj
+
+    warn_if_unstable(dyn, controls, traj.x[..., -1, :], dt, params, stacklevel=4)
+    return traj
 
 
 def _inputs(dyn, x0, u):
