@@ -323,3 +323,30 @@ def test_smooth_coulomb_friction():
                                rtol=1e-6, atol=1e-7)
     with pytest.raises(jaxskid.RequestError, match="friction_smoothing"):
         jaxskid.Options(friction_smoothing=-1.0)
+
+
+def test_regressor_with_drives_keeps_its_native_kernel(driven):
+    """The drive columns (qdd, qd, sign(qd), 1) have a native vector form: the regressor stays a native kernel,
+    and it agrees with the JAX form and with tau = Y pi at velocities of both signs and exactly zero."""
+    robot, _, dyn = driven
+    assert dyn.native_target("regressor") is not None, "a C compiler is required (apt-get install gcc)"
+    params, *_ = _drive_values(robot, 7)
+    q, qd, qdd = _states(robot.n_dof, 6, 8)
+    qd[:, ::3] = 0.0  # sign(0) = 0: no Coulomb friction at rest
+    y = np.asarray(dyn.regressor(q, qd, qdd, params))
+    p = dyn.param_vector(params)
+    jax_form = np.asarray(jax.vmap(dyn.generated("regressor", False), (0, 0, 0, None))(q, qd, qdd, p))
+    np.testing.assert_allclose(y, jax_form, rtol=1e-12, atol=1e-12 * np.abs(jax_form).max())
+    pi = jaxskid.standard_params(robot, params)
+    assert rel_err(y @ pi, np.asarray(dyn.inverse_dynamics(q, qd, qdd, params))) <= TOL
+
+
+def test_report_names_each_quantitys_form(driven):
+    """One report of how each quantity runs: the matrix-valued ones and the rollouts' backward steps as native
+    kernels, with drives too; vectors in their JAX form, saying why."""
+    _, _, dyn = driven
+    report = dyn.report()
+    assert set(dyn.quantities) <= set(report)
+    for name in ("mass_matrix", "regressor", "forward_dynamics", "fd_vjp"):
+        assert report[name] == "native kernel", (name, report[name])
+    assert report["inverse_dynamics"].startswith("JAX form (a vector")

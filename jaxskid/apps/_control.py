@@ -55,8 +55,20 @@ def _split(x):
     return x[:n], x[n:]
 
 
+TRACKING_ARGS = """
+    Args:
+        dyn: the lowered model the law computes with.
+        reference: the desired joint positions, a function ``q_d(t) -> (n,)`` that JAX can differentiate twice
+            (its velocity and acceleration are taken by forward mode), or a constant set-point ``(n,)``.
+        kp, kd: position and velocity gains, scalars or one per joint ``(n,)``.
+        params: the parameters of the law's model (``None``: the defaults); they may differ from the rollout's
+            (the plant's), and may be traced (identification, adaptive control).
+"""
+
+
 class _Tracking(Controller):
-    """A stateless tracking law with diagonal gains ``kp``, ``kd`` and the model's parameters ``params``."""
+    """A stateless tracking law with diagonal gains ``kp``, ``kd`` and the model's parameters ``params``
+    (arguments: :data:`TRACKING_ARGS`)."""
 
     def __init__(self, dyn: Dynamics, reference, kp, kd, params=None):
         self.reference = _as_reference(reference)
@@ -111,6 +123,10 @@ class PDGravity(_Tracking):
     def __call__(self, t, x, z):
         q, _, p, e, ed, _ = self._errors(t, x)
         return self.kp * e + self.kd * ed + self.gravity(q, p), ()
+
+
+ComputedTorque.__doc__ += TRACKING_ARGS
+PDGravity.__doc__ += TRACKING_ARGS
 
 
 def mixed_regressor(dyn: Dynamics, q, qd, v, a, params=None) -> jax.Array:

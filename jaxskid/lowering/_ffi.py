@@ -223,8 +223,15 @@ static inline @V@ @V@trig(@V@ x, long long quadrant)
         if (!(x[l] > -1e5 && x[l] < 1e5)) out[l] = quadrant ? cos(x[l]) : sin(x[l]);
     return out;
 }
+
+/* sign(x) of every lane, -1, 0 or 1 (the generated C's copysign((double)(x != 0), x); a comparison of vectors
+   gives -1 where it holds) */
+static inline @V@ @V@sign(@V@ x)
+{
+    return __builtin_convertvector((x < @V@LIFT(0.0)) - (x > @V@LIFT(0.0)), @V@);
+}
 """
-"""Lane-wise sine and cosine of a vector type ``@V@`` (with ``@V@LIFT`` and the integer vector ``@V@I``): the
+"""Lane-wise sine, cosine and sign of a vector type ``@V@`` (with ``@V@LIFT`` and the integer vector ``@V@I``): the
 quantity kernels' (``V``) and the backward step's (``T``; with libm per lane it spent about a third of its
 time in ``sin`` and ``cos``)."""
 
@@ -235,14 +242,16 @@ LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
 
 _CALL = re.compile(r"\b([A-Za-z_]\w*)\s*\(")
+_SIGN = re.compile(r"copysign\(\(double\)\(\((\w+)\) != 0\), \1\)")
+"""The generated C's ``sign(x)`` (drives' Coulomb friction), rewritten to the lane-wise ``<vec>sign``."""
 
 
 def lane_functions(source: str, stem: str, names: tuple[str, ...], vec: str = "T") -> str | None:
     """The generated C functions ``<stem>_<name>`` of ``source`` rewritten over vectors of ``LANES`` states
     (``<stem>_<name>_<vec>``, of the vector type ``vec``): every ``double`` becomes ``vec``, ``sin``/``cos``
     the glue's lane-wise ``<vec>sin``/``<vec>cos``, a right-hand side that is a number is made a vector
-    (``<vec>LIFT``). None when a body calls any other function or has a conditional (the scalar kernel or
-    the JAX function serves)."""
+    (``<vec>LIFT``), ``sign`` (:data:`_SIGN`) the lane-wise ``<vec>sign``. None when a body calls any other
+    function or has a conditional (the scalar kernel or the JAX function serves)."""
     out = []
     for name in names:
         fn = f"{stem}_{name}"
@@ -250,7 +259,8 @@ def lane_functions(source: str, stem: str, names: tuple[str, ...], vec: str = "T
         if m is None:
             return None
         params, body = m.group(1), m.group(2)
-        if "?" in body or set(_CALL.findall(body)) - {"sin", "cos"}:
+        body = _SIGN.sub(rf"{vec}sign(\1)", body)
+        if "?" in body or set(_CALL.findall(body)) - {"sin", "cos", f"{vec}sign"}:
             return None
         params = params.replace("const double *", f"const {vec} *").replace("double *out", f"{vec} *out")
         body = re.sub(r"\bconst double\b", f"const {vec}", body)

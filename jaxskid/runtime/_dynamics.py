@@ -20,7 +20,7 @@ import numpy as np
 
 from .._errors import unknown_names, RequestError, ShapeError
 from ._base import QuantitySet, metadata_fields
-from ._ffi import enabled as native_enabled, library, native_quantity, target
+from ._ffi import enabled as native_enabled, library, log, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._forward import accelerations, forward_dynamics
@@ -174,6 +174,28 @@ class Dynamics(QuantitySet):
             self._native_path.update({k: path for k, b in self._native_build.items() if b is build})
         return target(self._native_path[name], name)
 
+    def report(self) -> dict[str, str]:
+        """How each quantity runs on this machine, ``{name: form}``: ``"native kernel"`` (generated C behind an
+        XLA FFI handler, :mod:`jaxskid.runtime._ffi`), or ``"JAX form"`` with the reason (a vector quantity,
+        which XLA fuses with its caller; native kernels off, or their library unavailable; no vector form in
+        C). Builds the native libraries that are not built yet. Forward dynamics and the rollouts' backward
+        steps (``fd_vjp``, ``rk4_vjp``, ``rk4fb_vjp``) are listed where they have a kernel."""
+        out = {}
+        for name in (*self.quantities, *(k for k in ("fd_vjp", "rk4_vjp", "rk4fb_vjp") if k in self._native_build)):
+            out[name] = self._form(name)
+        return out
+
+    def _form(self, name: str) -> str:
+        if name not in self._native_build:
+            return "JAX form (a vector: XLA fuses it with its caller)" if name in self._signatures else "JAX form"
+        if not self._native_wanted:
+            return "JAX form (native kernels off: JAXSKID_NATIVE=0, or JAX's default backend is not the CPU)"
+        if self.native_target(name) is not None:
+            return "native kernel"
+        if self._native_path.get(name) is None:
+            return "JAX form (the native library could not be built; see the log)"
+        return "JAX form (its generated C has no vector form: it calls a function the kernels lack)"
+
     def native_planned(self, name: str) -> bool:
         """Whether :meth:`native_target` is expected to give a kernel for ``name`` (its library is part of this
         lowering and native kernels are on), without building it."""
@@ -224,6 +246,9 @@ class Dynamics(QuantitySet):
         args, shape = self.signature(name)
         raw, plain = self._raw[name], self._plain[name]
         native = self.native_target(name)
+        if native is None and self.native_planned(name):  # the fast path left: said once per quantity
+            log.warning("jaxskid: %s of %s runs in its JAX form on CPU, slower: %s", name, self.robot_name,
+                        self._form(name))
         if native is not None:  # the C kernel on CPU: one per batch, not a program per entry (jaxskid.runtime._ffi)
             raw, plain = native_quantity(native, shape, raw), native_quantity(native, shape, plain)
         cores = {a: self.argument_shape(a) for a in args}
