@@ -306,3 +306,14 @@ def test_step_stability_of_a_damped_joint_against_the_closed_form():
     assert check.amplification > 1  # 2e-3 * 2000 = 4 > 2.785
     assert abs(float(check.stable_dt) * abs(fast) - 2.785293563) < 1e-6  # RK4's real stability limit
     assert jaxskid.step_stability(dyn, pd, np.zeros(2), 1e-3).amplification <= 1
+
+
+def test_base_parameters_are_named_by_default():
+    """``base_parameters(dyn)`` names its combinations with the standard parameters' names, as when given
+    ``names=standard_parameter_names(robot)``."""
+    robot = jaxskid.load(ROBOTS_DIR / "arm_2r.yaml", drives=True)
+    dyn = jaxskid.lower(robot, ["regressor"])
+    assert dyn.standard_names == jaxskid.standard_parameter_names(robot)
+    named = jaxskid.base_parameters(dyn).describe()
+    assert named == jaxskid.base_parameters(dyn, names=jaxskid.standard_parameter_names(robot)).describe()
+    assert any("link2_m" in d for d in named) and not any("pi[" in d for d in named)

@@ -119,7 +119,8 @@ def base_parameters(
         samples: random states stacked (``samples * n`` rows; more than ``p / n`` needed).
         seed: the random states' seed.
         tol: a pivot below ``tol * |R_00|`` counts as zero (the regressor entries are O(1) here).
-        names: names of the columns (``jaxskid.standard_parameter_names`` for the standard regressor).
+        names: names of the columns; for a :class:`Dynamics` the standard parameters' names by default
+            (:attr:`Dynamics.standard_names`, as :func:`jaxskid.standard_parameter_names` gives them).
         n_dof: the number of joints, for a function ``source``.
     """
     if isinstance(source, Dynamics):
@@ -127,6 +128,8 @@ def base_parameters(
             raise RequestError(f"base_parameters needs the quantity regressor; lowered: {', '.join(source.quantities)}")
         q, qd, qdd = random_states(source.n_dof, samples, seed, floating_base=source.floating_base)
         y = source.regressor(q, qd, qdd, params)
+        if not names and len(source.standard_names) == y.shape[-1]:
+            names = source.standard_names
     elif callable(source):
         if n_dof is None:
             raise RequestError("base_parameters: give n_dof= with a regressor function f(q, qd, qdd)")

@@ -24,6 +24,7 @@ import sympy as sp
 
 from .._version import __version__
 from ..equations._derive import Equations
+from ..model._standard import standard_parameter_names
 from ._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
 
 # Words that cannot be a module, namespace or function name in one of the target languages.
@@ -146,7 +147,8 @@ class Layout:
         """What the runtime needs to call the generated functions, as plain JSON data: ``robot``,
         ``joint_names``, ``frame_names``, ``end_effectors``, ``parameters`` (the order of ``p``),
         ``defaults`` (name -> value, for the parameters that have one), ``quantities`` (name ->
-        ``args``, ``shape``, ``equation``, ``doc``), only for a robot with drives, ``driven`` (the names of
+        ``args``, ``shape``, ``equation``, ``doc``), ``standard_names`` (the regressor's columns,
+        :func:`~jaxskid.standard_parameter_names`), only for a robot with drives, ``driven`` (the names of
         the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav),
         and only for a floating base, ``floating_base: 1`` (``q`` has ``7 + n`` entries, velocities ``6 + n``; an
         int, since the JAX module writes this as a Python literal)."""
@@ -162,6 +164,7 @@ class Layout:
             "end_effectors": list(r.end_effectors),
             "parameters": list(self.parameters),
             "defaults": r.default_params(),
+            "standard_names": list(standard_parameter_names(r)),
             "quantities": {n: {"args": list(q.args), "shape": list(q.shape), "equation": q.equation, "doc": q.doc}
                            for n, q in quantities.items()},
             **driven,

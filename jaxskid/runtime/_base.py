@@ -31,6 +31,7 @@ def metadata_fields(meta: Mapping) -> dict:
         end_effectors=meta["end_effectors"], layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
         signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
         driven=meta.get("driven", ()), floating_base=meta.get("floating_base", False),
+        standard_names=meta.get("standard_names", ()),
     )
 
 
@@ -57,6 +58,7 @@ class QuantitySet:
         inertia: ``() -> (standard, bodies, involved)``, the map from a parameter vector to the bodies'
             standard parameters (:func:`jaxskid.model._standard.body_standard_map`), called on the first check
             of parameter values; None: masses and inertias are not checked at call time.
+        standard_names: the names of the regressor's columns (:func:`jaxskid.standard_parameter_names`).
         checks: whether top-level calls check their inputs (:mod:`jaxskid.runtime._checks`): NaN or inf in
             a state or a parameter, parameter values that are not numbers, masses and inertias no rigid body
             has. Inside a caller's ``jit``, ``grad`` or ``vmap`` nothing is checked.
@@ -79,6 +81,7 @@ class QuantitySet:
         floating_base: bool = False,
         inertia: Callable[[], tuple] | None = None,
         checks: bool = True,
+        standard_names: Sequence[str] = (),
     ):
         self.robot_name: str = robot_name
         self.driven: tuple[str, ...] = tuple(driven)
@@ -97,6 +100,9 @@ class QuantitySet:
         self._signatures = {k: (tuple(a), tuple(s)) for k, (a, s) in signatures.items()}
         self._catalogue = frozenset(catalogue)
         self._host = HostParameters(layout)
+        self.standard_names: tuple[str, ...] = tuple(standard_names)
+        """The standard parameters' names, the regressor's columns (``{link}_m``, ..., then the drives'); empty
+        for a module generated before they were recorded."""
         self.checks: bool = bool(checks)
         """Whether top-level calls check their inputs (see the ``checks`` argument)."""
         self._inertia_source = inertia
