@@ -231,7 +231,9 @@ class Robot:
 
     @property
     def parameters(self) -> tuple[str, ...]:
-        """Names of all symbolic parameters, in order of first appearance."""
+        """Names of all symbolic parameters, in order of first appearance, body by body; within a body its
+        inertial parameters in the standard order (``m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz``, that of
+        :func:`jaxskid.standard_params` and of the regressor's columns)."""
         return self._parameters
 
     def default_params(self) -> dict[str, float]:
@@ -379,11 +381,15 @@ class Robot:
                               base_inertia=base_inertia, constraints=tuple(c.mapped(fn) for c in self.constraints))
 
     def expressions(self) -> Iterable[sp.Expr]:
+        """Every expression of the model, the inertias first as their standard parameters (``m, mcx, mcy, mcz,
+        Ixx, Ixy, Iyy, Ixz, Iyz, Izz``), so that :attr:`parameters` runs in the order of :func:`standard_params`."""
         if self.base_inertia is not None:
+            yield from lie.standard_parameters(self.base_inertia)
             yield from self.base_inertia
         for j in self.joints:
             yield from j.origin
             yield from j.screw
+            yield from lie.standard_parameters(j.inertia)
             yield from j.inertia
             yield from j.drive.values() if j.drive is not None else ()
         yield from self.gravity

@@ -67,6 +67,7 @@ class InertiaCheck:
     def __init__(self, names: Sequence[str], standard: Callable, bodies: Sequence[str],
                  involved: Sequence[Sequence[str]], defaults: np.ndarray | None):
         self.names, self.standard, self.bodies, self.involved = tuple(names), standard, tuple(bodies), involved
+        self.defaults = defaults
         self.reference = None if defaults is None else standard(defaults)
 
     def check(self, p: np.ndarray, where: str = "params") -> None:
@@ -74,7 +75,7 @@ class InertiaCheck:
         m = pi[..., 0]
         if (m < 0).any():
             k = int(np.argmax((m < 0).reshape(-1, m.shape[-1]).any(axis=0)))
-            raise InputError(f"{where}: {self._named(k, 0)} gives body {self.bodies[k]!r} the mass "
+            raise InputError(f"{where}: {self._named(k, 0, p)} gives body {self.bodies[k]!r} the mass "
                              f"{float(np.min(m[..., k])):g}: expected a mass >= 0")
         changed = np.ones(m.shape[-1], bool) if self.reference is None else \
             (np.abs(pi - self.reference) > 1e-12 * (1 + np.abs(self.reference))).reshape(-1, *pi.shape[-2:]).any(axis=(0, 2))
@@ -91,12 +92,19 @@ class InertiaCheck:
         if bad.any():
             k = int(np.flatnonzero(changed)[int(np.argmax(bad))])
             raise InputError(
-                f"{where}: body {self.bodies[k]!r}: {self._named(k, 1)} give a rotational inertia about the centre "
+                f"{where}: body {self.bodies[k]!r}: {self._named(k, 1, p)} give a rotational inertia about the centre "
                 f"of mass with the eigenvalue {float(np.min(low[..., int(np.argmax(bad))])):.6g}: expected a "
                 f"positive semi-definite inertia")
 
-    def _named(self, k: int, which: int) -> str:
+    def _named(self, k: int, which: int, p: np.ndarray) -> str:
+        """The parameters body ``k``'s mass (``which = 0``) or inertia (1) depends on, those given other values
+        than their defaults first."""
         names = self.involved[k][which]
+        if self.defaults is not None:
+            index = {name: i for i, name in enumerate(self.names)}
+            values = np.reshape(p, (-1, len(self.names)))
+            changed = [x for x in names if np.any(values[:, index[x]] != self.defaults[index[x]])]
+            names = changed + [x for x in names if x not in changed]
         shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
         return shown or "constants"
 

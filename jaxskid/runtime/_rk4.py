@@ -78,6 +78,15 @@ def _stages(qdd, q, qd, p, h, torque):
     return (q + h * aq, qd + h * aqd), saved
 
 
+def _available(dyn) -> bool:
+    """Whether the one-call steps serve ``dyn``: a fixed base with ``inverse_dynamics_vjp`` lowered. The native
+    kernel runs on CPU; elsewhere (a GPU, ``JAXSKID_NATIVE=0``) the same recursion in JAX, which on an H200
+    took the UR5's closed-loop gradient (PD + gravity, 1000 RK4 steps) from 541 to 237 ms at batch 1 and from
+    912 to 339 ms at batch 1024 against every stage differentiated by JAX
+    (``benchmarks/gpu_rollouts.py``)."""
+    return not dyn.floating_base and "inverse_dynamics_vjp" in dyn.quantities
+
+
 def _kernels(dyn, batched: bool):
     """``(qdd, stage_backward)``: forward dynamics with its forward-mode rule (for gradients of the gradient)
     and the backward step of forward dynamics in JAX."""
@@ -87,11 +96,10 @@ def _kernels(dyn, batched: bool):
 
 def held_torque_rk4(dyn, batched: bool) -> Callable | None:
     """``step(q, qd, tau, p, h) -> (q1, qd1)``, one RK4 step of ``h`` under the torque ``tau``, differentiable
-    in reverse mode with respect to all five; None where the native kernel is not to be had (a floating
-    base, ``JAXSKID_NATIVE=0``, not on CPU, or ``inverse_dynamics_vjp`` not lowered): the integrator's own
-    step then serves, differentiated stage by stage. ``batched``: whether it will be mapped with
+    in reverse mode with respect to all five; None for a floating base or without ``inverse_dynamics_vjp``
+    (:func:`_available`): the integrator's own step then serves, differentiated stage by stage. ``batched``: whether it will be mapped with
     ``jax.vmap`` (see :meth:`jaxskid.Dynamics.raw`)."""
-    if dyn.floating_base or not dyn.native_planned("rk4_vjp"):
+    if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
     qdd, stage_backward = _kernels(dyn, batched)
@@ -124,8 +132,8 @@ def feedback_rk4(dyn, batched: bool) -> Callable | None:
     the feedback ``tau = control(t, x, *consts)`` at every stage (``x = (q, qd)``; ``tau0``: the first stage's
     torque), differentiable in reverse mode with respect to all but ``control`` (module docstring).
     ``control`` is a function without closed-over tracers (:func:`jax.closure_convert` hoists them into
-    ``consts``). None where the native kernel is not to be had (as :func:`held_torque_rk4`)."""
-    if dyn.floating_base or not dyn.native_planned("rk4fb_vjp"):
+    ``consts``). None where :func:`held_torque_rk4` is None."""
+    if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
     qdd, stage_backward = _kernels(dyn, batched)
