@@ -49,6 +49,34 @@ ROBOTS = {
 }
 
 
+def _measure(out: dict, name: str, fn, p0, jit_name: str, repeats: int):
+    """Into ``out``: ``fn``'s first call under ``jit_name`` (``{name}_first_{jit_name}``); under jaxskid.jit also
+    its median time over ``repeats`` calls (``{name}_time``) and its compiled program's memory
+    (``{name}_memory``: arguments, outputs and temporaries). Returns the first call's value."""
+    import jax
+    import numpy as np
+
+    import jaxskid
+
+    f = (jaxskid.jit if jit_name == "jaxskid" else jax.jit)(fn)
+    start = time.perf_counter()
+    value = jax.block_until_ready(f(p0))
+    out[f"{name}_first_{jit_name}"] = time.perf_counter() - start
+    if jit_name == "jax":
+        return value
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(f(p0))
+        times.append(time.perf_counter() - start)
+    out[f"{name}_time"] = float(np.median(times))
+    memory = jax.jit(fn).lower(p0).compile().memory_analysis()
+    if memory is not None:
+        out[f"{name}_memory"] = int(memory.temp_size_in_bytes + memory.output_size_in_bytes
+                                    + memory.argument_size_in_bytes)
+    return value
+
+
 def _case(robot: str, steps: int, batch: int, repeats: int, jit_name: str) -> dict:
     """One case, in this process: first calls under ``jit_name``; with jaxskid.jit also run times and memory."""
     import jax
@@ -78,26 +106,10 @@ def _case(robot: str, steps: int, batch: int, repeats: int, jit_name: str) -> di
         "forward": jax.jacfwd(lambda p: loss(p, "forward")),
     }
     out = {"robot": robot, "n_dof": n, "n_params": len(p0), "steps": steps, "batch": batch}
-    jit = jaxskid.jit if jit_name == "jaxskid" else jax.jit
     for name, fn in fns.items():
         if name == "forward" and jit_name == "jax":
             continue
-        f = jit(fn)
-        start = time.perf_counter()
-        jax.block_until_ready(f(p0))
-        out[f"{name}_first_{jit_name}"] = time.perf_counter() - start
-        if jit_name == "jax":
-            continue
-        times = []
-        for _ in range(repeats):
-            start = time.perf_counter()
-            jax.block_until_ready(f(p0))
-            times.append(time.perf_counter() - start)
-        out[f"{name}_time"] = float(np.median(times))
-        memory = jax.jit(fn).lower(p0).compile().memory_analysis()
-        if memory is not None:
-            out[f"{name}_memory"] = int(memory.temp_size_in_bytes + memory.output_size_in_bytes
-                                        + memory.argument_size_in_bytes)
+        _measure(out, name, fn, p0, jit_name, repeats)
     return out
 
 
@@ -195,29 +207,11 @@ def _scene_case(name: str, batch: int, repeats: int, jit_name: str) -> dict:
     jax.config.update("jax_enable_x64", True)
     import numpy as np
 
-    import jaxskid
-
     loss, p0, n, n_params, steps, batch = _scene(name, batch)
     out = {"scene": name, "n_dof": n, "n_params": n_params, "steps": steps, "batch": batch}
-    jit = jaxskid.jit if jit_name == "jaxskid" else jax.jit
     for kind, fn in (("loss", loss), ("reverse", jax.grad(loss))):
-        f = jit(fn)
-        start = time.perf_counter()
-        value = jax.block_until_ready(f(p0))
-        out[f"{kind}_first_{jit_name}"] = time.perf_counter() - start
-        if jit_name == "jax":
-            continue
-        times = []
-        for _ in range(repeats):
-            start = time.perf_counter()
-            jax.block_until_ready(f(p0))
-            times.append(time.perf_counter() - start)
-        out[f"{kind}_time"] = float(np.median(times))
-        memory = jax.jit(fn).lower(p0).compile().memory_analysis()
-        if memory is not None:
-            out[f"{kind}_memory"] = int(memory.temp_size_in_bytes + memory.output_size_in_bytes
-                                        + memory.argument_size_in_bytes)
-        if kind == "reverse":
+        value = _measure(out, kind, fn, p0, jit_name, repeats)
+        if kind == "reverse" and jit_name == "jaxskid":
             direction = np.random.default_rng(1).standard_normal(len(p0)) * np.maximum(np.abs(np.asarray(p0)), 1e-3)
             h = 1e-6
             central = (float(loss(p0 + h * direction)) - float(loss(p0 - h * direction))) / (2 * h)
