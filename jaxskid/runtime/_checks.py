@@ -18,9 +18,12 @@ and the checks are skipped. ``jaxskid.lower(..., checks=False)`` skips them at t
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable, Iterable, Sequence
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError
@@ -37,14 +40,32 @@ def _concrete(value):
     return array if array.dtype.kind in "fc" else None
 
 
+@functools.lru_cache(maxsize=1)
+def _cpu_only() -> bool:
+    return all(d.platform == "cpu" for d in jax.devices())
+
+
+def _finite_sum(value) -> bool | None:
+    """Whether ``sum |x|^2`` over ``value`` is finite (then every entry is; NaN and inf propagate, and only a
+    sum that overflows from finite entries needs the entry-wise look), None where ``value`` is traced or not
+    a floating array. One dot product: a third of ``isfinite(x).all()``'s cost on a state, a half on a
+    batch; an array on an accelerator is reduced there, not copied to the host."""
+    if value is None or isinstance(value, jax.core.Tracer):
+        return None
+    if isinstance(value, jax.Array) and not _cpu_only():
+        return math.isfinite(float(jnp.real(jnp.vdot(value, value)))) if value.dtype.kind in "fc" else None
+    array = _concrete(value)
+    return None if array is None else math.isfinite(np.vdot(array, array).real)
+
+
 def check_finite(where: str, named: Iterable[tuple[str, object]]) -> None:
     """Raise :class:`InputError` for the first argument ``(name, value)`` that holds NaN or inf."""
     for name, value in named:
-        array = _concrete(value)
-        if array is None or array.size == 0:
+        if _finite_sum(value) is not False:
             continue
+        array = _concrete(value)
         finite = np.isfinite(array)
-        if finite.all():
+        if finite.all():  # the sum overflowed: every entry is finite
             continue
         index = np.unravel_index(int(np.argmin(finite.ravel())), array.shape)
         shown = f"{name}[{', '.join(map(str, index))}]" if array.ndim else name

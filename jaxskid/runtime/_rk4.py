@@ -80,10 +80,9 @@ def _stages(qdd, q, qd, p, h, torque):
 
 def _available(dyn) -> bool:
     """Whether the one-call steps serve ``dyn``: a fixed base with ``inverse_dynamics_vjp`` lowered. The native
-    kernel runs on CPU; elsewhere (a GPU, ``JAXSKID_NATIVE=0``) the same recursion in JAX, which on an H200
-    took the UR5's closed-loop gradient (PD + gravity, 1000 RK4 steps) from 541 to 237 ms at batch 1 and from
-    912 to 339 ms at batch 1024 against every stage differentiated by JAX
-    (``benchmarks/gpu_rollouts.py``)."""
+    kernel runs on CPU; elsewhere (a GPU, ``JAXSKID_NATIVE=0``) the same recursion in JAX, faster there too
+    than every stage differentiated by JAX under feedback (``benchmarks/gpu_rollouts.py``; figures in the
+    README)."""
     return not dyn.floating_base and "inverse_dynamics_vjp" in dyn.quantities
 
 
