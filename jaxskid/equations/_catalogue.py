@@ -38,6 +38,9 @@ class QuantitySpec:
     quantity its own way; ``None``: both routes build it with ``build``."""
     needs_constraints: bool = False
     """Whether it exists only for a robot with constraints (:attr:`Robot.constraints`)."""
+    pullback_of: str | None = None
+    """For a pullback (``<name>_vjp``): the quantity it differentiates; :func:`~jaxskid.equations.derive` builds
+    it from that quantity's outputs, by the same route (:func:`~jaxskid.symbolic.pullback`)."""
 
     def builder(self, route: str) -> Callable[[Derivation], list]:
         """The builder of ``route`` (``"screw"`` or ``"lagrange"``)."""
@@ -124,6 +127,29 @@ def _vjp(r: Robot) -> tuple[int, ...]:
     return (r.nq + r.nv + len(r.parameters),)
 
 
+def _pullback_shape(args: tuple[str, ...]) -> Callable[[Robot], tuple[int, ...]]:
+    return lambda r: (sum(r.nq if a == "q" else r.nv for a in args) + len(r.parameters),)
+
+
+def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str) -> QuantitySpec:
+    """The pullback of ``base`` (arguments ``args``): the gradients of ``<W, base>`` with respect to its state
+    arguments and the parameters, concatenated. The runtime differentiates ``base`` with it in reverse mode."""
+    wrt = ", ".join(f"d/d{a}" for a in (*args, "p"))
+    return QuantitySpec(
+        f"{base}_vjp", (*args, cotangent), _pullback_shape(args), _no_builder,
+        f"({wrt}) of sum W * {matrix}",
+        f"Vector-Jacobian product of {base} with W = {cotangent}: the gradients of the weighted sum of its "
+        f"entries with respect to {', '.join(args)} and the parameters, concatenated (nq entries for q, nv for "
+        "the others, then one per parameter), by a symbolic reverse sweep of its program. It gives "
+        f"jax.grad through {base} at a few times the cost of {base} itself.",
+        pullback_of=base,
+    )
+
+
+def _no_builder(d: Derivation) -> list:
+    raise AssertionError("a pullback is built from its quantity's outputs by derive()")
+
+
 def _regressor(r: Robot) -> tuple[int, ...]:
     return (r.nv, n_standard(r))
 
@@ -192,28 +218,29 @@ _CATALOGUE = (
     QuantitySpec(
         "mass_matrix", ("q",), _square, lambda d: _matrix(sym.mass_matrix(d)),
         "M(q) = J^T diag(M_i) J", "Joint-space mass (inertia) matrix, symmetric positive definite.",
-        lagrange=lambda d: _matrix(sym.lagrange.mass_matrix(d)),
+        lagrange=lambda d: _matrix(sym.lagrange.mass_matrix(d)), derivatives=("mass_matrix_vjp",),
     ),
     QuantitySpec(
         "coriolis_matrix", ("q", "qd"), _square, lambda d: _matrix(sym.coriolis_matrix(d)),
         "C(q, qd) = J^T (diag(M_i) dJ/dt + B(V) J)",
         "Coriolis/centrifugal matrix; C qd are the Coriolis forces and dM/dt - 2C is skew-symmetric.",
+        derivatives=("coriolis_matrix_vjp",),
     ),
     QuantitySpec(
         "coriolis_torques", ("q", "qd"), _vector, sym.coriolis_torques,
         "C(q, qd) qd", "Coriolis and centrifugal generalized forces (recursive Newton-Euler).",
-        lagrange=sym.lagrange.coriolis_torques,
+        lagrange=sym.lagrange.coriolis_torques, derivatives=("coriolis_torques_vjp",),
     ),
     QuantitySpec(
         "gravity_torques", ("q",), _vector, sym.gravity_torques,
         "Q_grav(q)", "Generalized gravity forces: the torques that hold the robot still.",
-        lagrange=sym.lagrange.gravity_torques,
+        lagrange=sym.lagrange.gravity_torques, derivatives=("gravity_torques_vjp",),
     ),
     QuantitySpec(
         "inverse_dynamics", ("q", "qd", "qdd"), _vector, sym.inverse_dynamics,
         "tau = M(q) qdd + C(q, qd) qd + Q_grav(q)",
         "Joint forces for a motion (recursive Newton-Euler); add external_torques for end-effector loads.",
-        lagrange=sym.lagrange.inverse_dynamics,
+        lagrange=sym.lagrange.inverse_dynamics, derivatives=("inverse_dynamics_vjp", "mass_matrix"),
     ),
     QuantitySpec(
         "external_torques", ("q", "wrench"), _vector, lambda d: sym.external_torques(d, _wrenches(d, 0)),
@@ -398,6 +425,10 @@ _CATALOGUE = (
         "C_e(q) = C_body(q) T_e", "World pose of each end-effector: forward_kinematics of those frames alone.",
         needs_end_effector=True,
     ),
+    _pullback("mass_matrix", ("q",), "cotangent_matrix", "M(q)"),
+    _pullback("coriolis_matrix", ("q", "qd"), "cotangent_matrix", "C(q, qd)"),
+    _pullback("gravity_torques", ("q",), "cotangent", "Q_grav(q)"),
+    _pullback("coriolis_torques", ("q", "qd"), "cotangent", "C(q, qd) qd"),
 )
 
 QUANTITIES: MappingProxyType[str, QuantitySpec] = MappingProxyType({spec.name: spec for spec in _CATALOGUE})

@@ -15,6 +15,7 @@ import sympy as sp
 
 from .._errors import RequestError, unknown_names
 from ..model._robot import Robot
+from .. import symbolic as sym
 from ..symbolic import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs
 from . import _mimic as mimic
 from ._catalogue import DEFAULT_QUANTITIES, QUANTITIES
@@ -30,6 +31,7 @@ _ARGUMENT_DOCS = {
     "q4d": "joint jounces",
     "tau": "joint forces",
     "cotangent": "weights w of a vector-Jacobian product w^T d(joint forces)",
+    "cotangent_matrix": "weights W of a vector-Jacobian product sum_ij W_ij d(matrix entry ij)",
     "wrench": "end-effector wrenches (moment, force)",
     "wrench_d": "first time derivatives of the end-effector wrenches",
     "wrench_dd": "second time derivatives of the end-effector wrenches",
@@ -146,6 +148,7 @@ def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
     floating base's position and quaternion, or its twist or wrench, first), the wrenches ``(n_ee, 6)``."""
     n_ee = len(robot.end_effectors)
     shapes = {**{k: (robot.nq if k == "q" else robot.nv,) for k in (*STATE_ORDERS, "tau", "cotangent")},
+              "cotangent_matrix": (robot.nv, robot.nv),
               **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
     docs = dict(_ARGUMENT_DOCS)
     if robot.floating_base:
@@ -173,8 +176,7 @@ def derive(
     built: dict[str, list] = {}
     for name in _progress(names, progress):
         spec = QUANTITIES[name]
-        builder = spec.builder(options.route)
-        outs = mimic.build(name, builder, d) if robot.mimic_joints else builder(d)
+        outs = _outputs(spec, d, options.route)
         size = 1
         for n in spec.shape(robot):
             size *= n
@@ -196,6 +198,15 @@ def derive(
         assignments=tuple(assignments),
         options=options,
     )
+
+
+def _outputs(spec, d: Derivation, route: str) -> list:
+    """The flat outputs of one quantity on ``d``'s tape, by ``route``; a pullback from its quantity's outputs."""
+    if spec.pullback_of is not None:
+        base = QUANTITIES[spec.pullback_of]
+        return sym.pullback(d, _outputs(base, d, route), base.args, spec.args[-1])
+    builder = spec.builder(route)
+    return mimic.build(spec.name, builder, d) if d.robot.mimic_joints else builder(d)
 
 
 def _progress(names, enabled):

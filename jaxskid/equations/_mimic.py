@@ -118,7 +118,7 @@ def check(robot, names: Sequence[str], route: str) -> None:
     if not robot.mimic_joints:
         return
     which = f"robot {robot.name!r} has mimic joints ({', '.join(robot.mimic_joints)})"
-    missing = [n for n in names if n not in AXES]
+    missing = [n for n in names if n not in AXES and _base(n) not in AXES]
     if missing:
         raise RequestError(f"{', '.join(missing)} not available: {which}")
     if route == "lagrange":
@@ -127,7 +127,12 @@ def check(robot, names: Sequence[str], route: str) -> None:
 
 def supported(robot, names: Sequence[str]) -> list[str]:
     """``names`` without the quantities a robot with mimic joints does not have (for ``None`` and ``"all"``)."""
-    return [n for n in names if n in AXES] if robot.mimic_joints else list(names)
+    return [n for n in names if n in AXES or _base(n) in AXES] if robot.mimic_joints else list(names)
+
+
+def _base(name: str) -> str | None:
+    """The quantity a pullback (``<name>_vjp``, built from its quantity's projected outputs) differentiates."""
+    return name[: -len("_vjp")] if name.endswith("_vjp") else None
 
 
 def build(name: str, builder: Callable[[Derivation], list], d: Derivation) -> list:

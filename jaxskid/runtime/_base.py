@@ -133,9 +133,11 @@ class QuantitySet:
 
     def argument_shape(self, arg: str) -> tuple[int, ...]:
         """The shape of one state of the argument ``arg``: ``(n_ee, 6)`` for the wrenches, ``(nq,)`` for ``q``,
-        ``(nv,)`` for the velocity-space ones (``qd``, ``qdd``, ..., ``tau``, ``cotangent``)."""
+        ``(nv,)`` for the velocity-space ones (``qd``, ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``."""
         if arg.startswith("wrench"):
             return (len(self.end_effectors), 6)
+        if arg == "cotangent_matrix":
+            return (self.nv, self.nv)
         return (self.nq,) if arg == "q" else (self.nv,)
 
     def default_params(self) -> dict[str, float]:

@@ -28,6 +28,7 @@ from ._checks import check_finite
 from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
 from ._parameters import param_array
+from ._pullback import with_pullback
 
 
 _ONCE = 32
@@ -112,6 +113,16 @@ class Dynamics(QuantitySet):
             name: _traced_once(functools.partial(_plain, namespace["_" + name], entries), name)
             for name, m in quantities.items() if m["shape"]
         }
+        # reverse mode by the closed-form pullbacks, where they were lowered (jaxskid.runtime._pullback)
+        self._rules: dict[str, Callable[[Callable], Callable]] = {}
+        for name in quantities:
+            pull = self._pullback(name)
+            if pull is not None:
+                n_args, shape = len(quantities[name]["args"]) + 1, tuple(quantities[name]["shape"])
+                rule = self._rules[name] = functools.partial(
+                    with_pullback, program=self._plain[name], pullback=pull, n_args=n_args, shape=shape)
+                self._raw[name] = _traced_once(rule(namespace[name]))
+                self._plain[name] = _traced_once(rule(self._plain[name]), name)
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
         self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
@@ -124,6 +135,47 @@ class Dynamics(QuantitySet):
                 self._native_build.update(fd_vjp=build, rk4_vjp=build, rk4fb_vjp=build)
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
+
+    def _pullback(self, name: str) -> Callable | None:
+        """``pull(*state, p, w)``: the cotangents of ``name``'s arguments for a cotangent ``w`` of its result,
+        from its lowered pullback (``<name>_vjp``; for inverse dynamics ``inverse_dynamics_vjp`` and the mass
+        matrix, ``d(w^T tau)/dqdd = M w``), native where it has a kernel; None where none was lowered."""
+        have = self._meta
+        if name == "inverse_dynamics" and {"inverse_dynamics_vjp", "mass_matrix"} <= set(have):
+            vjp, mass = self._pullback_kernel("inverse_dynamics_vjp"), self._pullback_kernel("mass_matrix")
+            nq, nv = self.nq, self.nv
+
+            def pull_tau(q, qd, qdd, p, w):
+                g = vjp(q, qd, qdd, w, p)
+                return g[:nq], g[nq:nq + nv], mass(q, p) @ w, g[nq + nv:]
+
+            return pull_tau
+        if f"{name}_vjp" not in have:
+            return None
+        vjp = self._pullback_kernel(f"{name}_vjp")
+        sizes = [int(np.prod(self.argument_shape(a))) for a in have[name]["args"]]
+        ends = np.cumsum(sizes).tolist()
+
+        def pull(*args):
+            *state, p, w = args
+            g = vjp(*state, w, p)
+            return (*(g[e - k:e] for k, e in zip(sizes, ends)), g[ends[-1]:])
+
+        return pull
+
+    def _pullback_kernel(self, name: str) -> Callable:
+        """``name``'s function of one state, its native kernel on CPU where it has one (looked up when first
+        called: when a derivative is first traced)."""
+        found: list = []
+
+        def call(*args):
+            if not found:
+                native = self.native_target(name) if self._native_wanted else None
+                raw = self._raw[name]
+                found.append(raw if native is None else native_quantity(native, tuple(self._meta[name]["shape"]), raw))
+            return found[0](*args)
+
+        return call
 
     def raw(self, name: str, batched: bool = True) -> Callable:
         """The function of one state, ``f(*state, p)`` with ``p`` a parameter vector, to call inside your own
@@ -249,8 +301,12 @@ class Dynamics(QuantitySet):
         if native is None and self.native_planned(name):  # the fast path left: said once per quantity
             log.warning("jaxskid: %s of %s runs in its JAX form on CPU, slower: %s", name, self.robot_name,
                         self._form(name))
+        raw_out = plain_out = None
         if native is not None:  # the C kernel on CPU: one per batch, not a program per entry (jaxskid.runtime._ffi)
-            raw, plain = native_quantity(native, shape, raw), native_quantity(native, shape, plain)
+            raw = raw_out = native_quantity(native, shape, raw)
+            plain = plain_out = native_quantity(native, shape, plain)
+            if name in self._rules:  # differentiated without tracing the JAX form's value
+                raw, plain = self._rules[name](raw_out), self._rules[name](plain_out)
         cores = {a: self.argument_shape(a) for a in args}
         n_params = (len(self.parameters),)
 
@@ -263,9 +319,9 @@ class Dynamics(QuantitySet):
                 # The native kernel writes into it. The JAX form does not take it: the outermost jit donates
                 # it, and XLA gives its memory to the result of the same shape.
                 if native is not None and not batch:
-                    return plain(*arrays, p, out=out)
+                    return plain_out(*arrays, p, out=out)
                 if native is not None:
-                    return vmapped(lambda *a: raw(*a[:-1], out=a[-1]), batch,
+                    return vmapped(lambda *a: raw_out(*a[:-1], out=a[-1]), batch,
                                    [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1), (out, len(shape))])
             if not batch and pair and native is None:
                 # One state alone: XLA turns the broadcast inputs back into scalars and splits the function

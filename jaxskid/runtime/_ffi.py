@@ -78,15 +78,17 @@ def _dispatch(native: Callable, fallback: Callable) -> Callable:
     devices are all CPUs the fallback is only traced for a derivative."""
     cpu_only = all(d.platform == "cpu" for d in jax.devices())
 
-    @jax.custom_jvp
-    def kernel(*args):
+    def evaluate(*args):
         if cpu_only:
             return native(*args)
         return jax.lax.platform_dependent(*args, cpu=native, default=fallback)
 
+    kernel = jax.custom_jvp(evaluate)
+
     @kernel.defjvp
     def _derivative(primals, tangents):
-        return jax.jvp(fallback, primals, tangents)
+        # the value from the kernel; the fallback's own value is unused, and XLA drops what only it needs
+        return evaluate(*primals), jax.jvp(fallback, primals, tangents)[1]
 
     return kernel
 

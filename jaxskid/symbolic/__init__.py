@@ -27,7 +27,7 @@ recursion, a joint with screw matrix ``I_6`` (:mod:`._derivation`, :mod:`._kinem
 """
 
 from . import _lagrange as lagrange
-from ._adjoint import inverse_dynamics_vjp, jvp, vjp
+from ._adjoint import inverse_dynamics_vjp, jvp, pullback, vjp
 from ._centroidal import center_of_mass, center_of_mass_jacobian, centroidal_momentum_matrix
 from ._constraints import constraint_drift, constraint_jacobian, constraint_residual
 from ._coriolis import coriolis_matrix
@@ -106,6 +106,7 @@ __all__ = [
     "system_jacobian",
     "system_jacobian_dot",
     "twist",
+    "pullback",
     "vjp",
     "with_rotor_energy",
     "with_rotor_momentum",

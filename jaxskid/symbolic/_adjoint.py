@@ -111,6 +111,15 @@ def partials(expr: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
     return {a: sp.Add(*terms) for a, terms in out.items()}
 
 
+def pullback(d: Derivation, outputs: Sequence, args: Sequence[str], cotangent: str) -> list:
+    """The vector-Jacobian product of a quantity with respect to all its inputs: ``d(w^T y)/dx`` for ``x`` the
+    state arguments ``args`` in order (``"q"``, ``"qd"``, ...), then the parameters, with ``w`` the input
+    ``cotangent`` (``"cotangent"`` for a vector in velocity space, ``"cotangent_matrix"`` for a square matrix,
+    row-major like ``outputs``)."""
+    wrt = [s for a in args for s in d.inputs.by_name(a)]
+    return vjp(d, outputs, d.inputs.by_name(cotangent), (*wrt, *d.inputs.params))
+
+
 def inverse_dynamics_vjp(d: Derivation) -> list:
     """``(w^T dtau/dq, w^T dtau/dqd, w^T dtau/dp)`` of inverse dynamics at fixed ``qdd``, with ``w`` the
     input ``cotangent``: ``nq + nv + n_params`` entries (a floating base's derivatives with respect to its

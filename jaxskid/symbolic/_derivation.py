@@ -56,7 +56,8 @@ class Inputs:
     ``coordinates`` the body of each coordinate. ``tau`` the joint forces ``_tau{k}``; ``wrenches[r]``
     the r-th time derivative of the end-effector wrenches (moment, force), one 6-tuple per end-effector
     (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters;
-    ``cotangent`` the weights ``_ct{k}`` of a vector-Jacobian product of joint forces (shape ``(n,)``).
+    ``cotangent`` the weights ``_ct{k}`` of a vector-Jacobian product of joint forces (shape ``(n,)``),
+    ``cotangent_matrix`` those ``_cm{k}`` of one of a square matrix in velocity space (``(n, n)``, row-major).
     With a floating base, ``base[k]`` holds the base's symbols of order k: the position and unit quaternion
     ``(x, y, z, qx, qy, qz, qw)`` (``_q_b0`` .. ``_q_b6``) for k = 0, then the base twist ``(omega, v)`` in the
     base frame and its derivatives (``_qd_b0`` .. ``_qd_b5``, ...); ``tau`` and ``cotangent`` start with the base's
@@ -68,6 +69,7 @@ class Inputs:
     wrenches: tuple[tuple[tuple[sp.Symbol, ...], ...], ...]
     params: tuple[sp.Symbol, ...]
     cotangent: tuple[sp.Symbol, ...] = ()
+    cotangent_matrix: tuple[sp.Symbol, ...] = ()
     coordinates: tuple[int, ...] | None = None
     """The body of each coordinate (``None``: every body, in order)."""
     base: tuple[tuple[sp.Symbol, ...], ...] = ()
@@ -91,6 +93,7 @@ class Inputs:
                       _wrench_symbols("_wrench_dd", n_ee)),
             params=tuple(symbol(p) for p in robot.parameters),
             cotangent=_symbols("_ct", nv),
+            cotangent_matrix=_symbols("_cm", nv * nv),
             coordinates=None if n == robot.n_bodies else robot.coordinates,
             base=tuple(_symbols(f"_{k}_b", 7 if k == "q" else 6) for k in STATE_ORDERS) if robot.floating_base else (),
         )
@@ -116,7 +119,7 @@ class Inputs:
         return self.state[2]
 
     def by_name(self, name: str) -> tuple[sp.Symbol, ...]:
-        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"``, ``"cotangent"`` or one of
+        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"``, ``"cotangent"``, ``"cotangent_matrix"`` or one of
         :data:`WRENCH_ORDERS`), row-major."""
         if name in STATE_ORDERS:
             return self.coordinate(STATE_ORDERS.index(name))
@@ -126,6 +129,8 @@ class Inputs:
             return self.tau
         if name == "cotangent":
             return self.cotangent
+        if name == "cotangent_matrix":
+            return self.cotangent_matrix
         raise KeyError(name)
 
 
