@@ -151,12 +151,15 @@ class Layout:
         :func:`~jaxskid.standard_parameter_names`), only for a robot with drives, ``driven`` (the names of
         the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav),
         and only for a floating base, ``floating_base: 1`` (``q`` has ``7 + n`` entries, velocities ``6 + n``; an
-        int, since the JAX module writes this as a Python literal)."""
+        int, since the JAX module writes this as a Python literal), and only for ``Options(coriolis="skidy")``,
+        ``coriolis: "skidy"``."""
         r = self.robot
         quantities = {n: self.eqs.quantities[n] for n in self.names}
         driven = {"driven": [r.joints[i].name for i in r.driven]} if r.driven else {}
         if r.floating_base:
             driven["floating_base"] = 1
+        if self.eqs.options.coriolis != "christoffel":
+            driven["coriolis"] = self.eqs.options.coriolis
         return {
             "robot": r.name,
             "joint_names": list(r.joint_names),

@@ -161,7 +161,8 @@ def _time_derivatives(k: int) -> tuple[QuantitySpec, ...]:
             "coriolis_matrix" + suffix, state[: k + 2], _square,
             lambda d: _matrix(sym.coriolis_matrix_derivative(d, k)),
             f"{dt} C(q, qd)",
-            f"{word} time derivative of the Christoffel-consistent Coriolis matrix of coriolis_matrix.",
+            f"{word} time derivative of the Coriolis matrix of coriolis_matrix (in the factorisation of "
+            "Options.coriolis).",
         ),
         QuantitySpec(
             "gravity_torques" + suffix, state[: k + 1], _vector,
@@ -197,7 +198,8 @@ _CATALOGUE = (
     QuantitySpec(
         "coriolis_matrix", ("q", "qd"), _square, lambda d: _matrix(sym.coriolis_matrix(d)),
         "C(q, qd) = J^T (diag(M_i) dJ/dt + B(V) J)",
-        "Coriolis/centrifugal matrix; C qd are the Coriolis forces and dM/dt - 2C is skew-symmetric.",
+        "Coriolis/centrifugal matrix; C qd are the Coriolis forces. Options.coriolis picks B: 'christoffel' "
+        "(default; dM/dt - 2C is skew-symmetric, Pinocchio's C) or 'skidy' (B(V) = -ad(V)^T M, Skidy's C).",
     ),
     QuantitySpec(
         "coriolis_torques", ("q", "qd"), _vector, sym.coriolis_torques,

@@ -169,7 +169,8 @@ def derive(
         raise RequestError(f"Options(route='lagrange') not available: robot {robot.name!r} has a floating base; "
                            "use the default route 'screw'")
     inputs = Inputs.of(robot)
-    d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing))
+    d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing),
+                   coriolis=options.coriolis)
     built: dict[str, list] = {}
     for name in _progress(names, progress):
         spec = QUANTITIES[name]
