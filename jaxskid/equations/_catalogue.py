@@ -38,6 +38,9 @@ class QuantitySpec:
     quantity its own way; ``None``: both routes build it with ``build``."""
     needs_constraints: bool = False
     """Whether it exists only for a robot with constraints (:attr:`Robot.constraints`)."""
+    needs_inertia: bool = True
+    """Whether it depends on the bodies' mass-inertia; ``False`` for the kinematic quantities, which a robot
+    with bodies :attr:`~jaxskid.Robot.without_inertia` still has."""
 
     def builder(self, route: str) -> Callable[[Derivation], list]:
         """The builder of ``route`` (``"screw"`` or ``"lagrange"``)."""
@@ -183,7 +186,7 @@ def _time_derivatives(k: int) -> tuple[QuantitySpec, ...]:
             f"{dt} Q_ext = {dt} sum_e J_e^T W_e",
             f"{word} time derivative of the generalized end-effector forces, from the wrenches and their "
             f"time derivatives ({', '.join(wrenches[1:])}), (moment, force) in each end-effector's frame.",
-            needs_end_effector=True,
+            needs_end_effector=True, needs_inertia=False,
         ),
     )
 
@@ -223,59 +226,70 @@ _CATALOGUE = (
         "Generalized forces of end-effector wrenches W_e (moment, force) in each end-effector's frame; "
         "W_e is what the end-effector exerts on its environment, so tau = M qdd + C qd + Q_grav + Q_ext.",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "forward_kinematics", ("q",), _poses,
         lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.frame_names]),
         "C_f(q) = C_body(q) T_f", "World pose of every named frame (bodies, merged links, end-effectors).",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "body_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian),
         "V_e = J_e(q) qd, body-fixed", "Body Jacobian of each end-effector: twist (omega, v) in its own frame.",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian),
         "V_e^h = J_e^h(q) qd", "Hybrid Jacobian of each end-effector: (omega, velocity of the origin) in world axes.",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
     *_time_derivatives(1),
     *_time_derivatives(2),
     QuantitySpec(
         "body_twist", ("q", "qd"), _per_body, lambda d: _bodies(d, sym.twist),
         "V_i^ = C_i^-1 dC_i/dt, (omega, v)", "Body twist of every moving body, in its own frame.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_twist", ("q", "qd"), _per_body, lambda d: _bodies(d, sym.body_hybrid_twist),
         "V_i^h = (R_i omega_i, dp_i/dt)",
         "Hybrid twist of every moving body: angular velocity and velocity of the frame origin, world axes.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "body_acceleration", ("q", "qd", "qdd"), _per_body,
         lambda d: _bodies(d, lambda d_, i: sym.acceleration(d_, i, Terms.MOTION)),
         "dV_i/dt", "Time derivative of the body twist of every moving body (Pinocchio's LOCAL spatial "
         "acceleration); gravity not included.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_acceleration", ("q", "qd", "qdd"), _per_body, lambda d: _bodies(d, sym.body_hybrid_acceleration),
         "dV_i^h/dt = (domega_i/dt, d^2p_i/dt^2)",
         "Time derivative of the hybrid twist of every moving body: angular acceleration and classical "
         "acceleration of the frame origin, world axes; gravity not included.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "ee_body_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 0)),
         "V_e = J_e qd", "Body twist (omega, v) of each end-effector, in its own frame.", needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "ee_hybrid_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, sym.frame_hybrid_twist),
         "V_e^h = J_e^h qd = (omega, dp_e/dt)", "Hybrid twist of each end-effector (world axes, at its origin).",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "ee_body_acceleration", ("q", "qd", "qdd"), _per_ee,
         lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 1)),
         "dV_e/dt = J_e qdd + dJ_e/dt qd", "Time derivative of each end-effector's body twist; gravity not included.",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "ee_hybrid_acceleration", ("q", "qd", "qdd"), _per_ee,
@@ -283,25 +297,30 @@ _CATALOGUE = (
         "dV_e^h/dt = J_e^h qdd + dJ_e^h/dt qd = (domega/dt, d^2p_e/dt^2)",
         "Time derivative of each end-effector's hybrid twist (classical acceleration of its origin, world axes).",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "system_jacobian", ("q",), _system, lambda d: _flat(sym.system_jacobian(d)),
         "V = J qd, J = (I - A)^-1 X",
         "Body-fixed system Jacobian: block row i is body i's body Jacobian (rows (omega, v) in body i's frame); "
         "a floating base's block row (I_6, 0) comes first.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "system_jacobian_dot", ("q", "qd"), _system, lambda d: _flat(sym.system_jacobian_dot(d)),
         "dJ/dt, dV/dt = J qdd + dJ/dt qd", "Time derivative of the body-fixed system Jacobian.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "body_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian_dot),
         "dJ_e/dt", "Time derivative of each end-effector's body Jacobian.", needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian_dot),
         "dJ_e^h/dt = blockdiag(R, R) (omega~ J_e + dJ_e/dt)",
         "Time derivative of each end-effector's hybrid Jacobian.", needs_end_effector=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "forward_dynamics", ("q", "qd", "tau"), _vector, lambda d: sym.forward_dynamics(d, d.inputs.tau),
@@ -369,16 +388,19 @@ _CATALOGUE = (
         "(jaxskid.PointContact, FrameContact, LoopClosure), one column per velocity coordinate; M qdd + h = "
         "tau + A^T lambda, lambda the constraint wrenches (moment, force) in world axes.",
         needs_constraints=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "constraint_drift", ("q", "qd"), _constraint_rows, sym.constraint_drift,
         "Adot(q, qd) qd", "Drift term of the constraints: A qdd + Adot qd = d^2 phi/dt^2 (the frames' classical "
         "accelerations at qdd = 0, without gravity).", needs_constraints=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "constraint_residual", ("q",), _constraint_rows, sym.constraint_residual,
         "phi(q)", "Position residual of the constraints, zero where they hold: p_a - p_b along the translations, "
         "the axis of the skew part of R_a R_b^T (sin(angle) axis) about the rotations.", needs_constraints=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "center_of_mass", ("q",), lambda r: (3,), sym.center_of_mass,
@@ -399,6 +421,7 @@ _CATALOGUE = (
         lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.end_effectors]),
         "C_e(q) = C_body(q) T_e", "World pose of each end-effector: forward_kinematics of those frames alone.",
         needs_end_effector=True,
+        needs_inertia=False,
     ),
 )
 
