@@ -85,6 +85,15 @@ def _ee_matrices(d: Derivation, fn) -> list:
     return _flat(out)
 
 
+def _parent_body(fn) -> Callable[[Derivation, str], list]:
+    """``fn`` of the body an end-effector is attached to (its ``ee_parent``: a link, or the base), given the
+    end-effector's name."""
+    def of_parent(d: Derivation, name: str) -> list:
+        body = d.robot.frame(name).body
+        return fn(d, d.robot.base if body < 0 else d.robot.joints[body].link)
+    return of_parent
+
+
 def _wrenches(d: Derivation, order: int) -> dict:
     """The end-effector wrench symbols of a time-derivative order, by end-effector name."""
     return {name: list(d.inputs.wrenches[order][e]) for e, name in enumerate(d.robot.end_effectors)}
@@ -225,8 +234,7 @@ _CATALOGUE = (
         "Q_ext = sum_e J_e(q)^T W_e",
         "Generalized forces of end-effector wrenches W_e (moment, force) in each end-effector's frame; "
         "W_e is what the end-effector exerts on its environment, so tau = M qdd + C qd + Q_grav + Q_ext.",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "forward_kinematics", ("q",), _poses,
@@ -237,14 +245,12 @@ _CATALOGUE = (
     QuantitySpec(
         "body_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian),
         "V_e = J_e(q) qd, body-fixed", "Body Jacobian of each end-effector: twist (omega, v) in its own frame.",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian),
         "V_e^h = J_e^h(q) qd", "Hybrid Jacobian of each end-effector: (omega, velocity of the origin) in world axes.",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
     ),
     *_time_derivatives(1),
     *_time_derivatives(2),
@@ -275,29 +281,26 @@ _CATALOGUE = (
     ),
     QuantitySpec(
         "ee_body_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 0)),
-        "V_e = J_e qd", "Body twist (omega, v) of each end-effector, in its own frame.", needs_end_effector=True,
-        needs_inertia=False,
+        "V_e = J_e qd", "Body twist (omega, v) of each end-effector, in its own frame.",
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "ee_hybrid_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, sym.frame_hybrid_twist),
         "V_e^h = J_e^h qd = (omega, dp_e/dt)", "Hybrid twist of each end-effector (world axes, at its origin).",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "ee_body_acceleration", ("q", "qd", "qdd"), _per_ee,
         lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 1)),
         "dV_e/dt = J_e qdd + dJ_e/dt qd", "Time derivative of each end-effector's body twist; gravity not included.",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "ee_hybrid_acceleration", ("q", "qd", "qdd"), _per_ee,
         lambda d: _end_effectors(d, sym.frame_hybrid_acceleration),
         "dV_e^h/dt = J_e^h qdd + dJ_e^h/dt qd = (domega/dt, d^2p_e/dt^2)",
         "Time derivative of each end-effector's hybrid twist (classical acceleration of its origin, world axes).",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "system_jacobian", ("q",), _system, lambda d: _flat(sym.system_jacobian(d)),
@@ -313,14 +316,14 @@ _CATALOGUE = (
     ),
     QuantitySpec(
         "body_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian_dot),
-        "dJ_e/dt", "Time derivative of each end-effector's body Jacobian.", needs_end_effector=True,
-        needs_inertia=False,
+        "dJ_e/dt", "Time derivative of each end-effector's body Jacobian.",
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian_dot),
         "dJ_e^h/dt = blockdiag(R, R) (omega~ J_e + dJ_e/dt)",
-        "Time derivative of each end-effector's hybrid Jacobian.", needs_end_effector=True,
-        needs_inertia=False,
+        "Time derivative of each end-effector's hybrid Jacobian.",
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "forward_dynamics", ("q", "qd", "tau"), _vector, lambda d: sym.forward_dynamics(d, d.inputs.tau),
@@ -332,8 +335,9 @@ _CATALOGUE = (
     QuantitySpec(
         "regressor", ("q", "qd", "qdd"), _regressor, lambda d: _flat(sym.regressor(d)),
         "tau = Y(q, qd, qdd) pi",
-        "Inertial-parameter regressor: tau is Y times the standard parameters pi (10 per body: m, m c, "
-        "Ixx, Ixy, Iyy, Ixz, Iyz, Izz about the body frame origin), see jaxskid.standard_params.",
+        "Inertial-parameter regressor: tau is Y times the standard parameters pi, 10 columns per body in the "
+        "order m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (inertia about the body frame origin; Pinocchio's "
+        "order; Skidy's swaps Iyy and Ixz), then the drives' Ia, fv, fc, fo; see jaxskid.standard_params.",
     ),
     QuantitySpec(
         "inverse_dynamics_vjp", ("q", "qd", "qdd", "cotangent"), _vjp, sym.inverse_dynamics_vjp,
@@ -420,8 +424,21 @@ _CATALOGUE = (
         "ee_pose", ("q",), lambda r: (len(r.end_effectors), 4, 4),
         lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.end_effectors]),
         "C_e(q) = C_body(q) T_e", "World pose of each end-effector: forward_kinematics of those frames alone.",
-        needs_end_effector=True,
-        needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False,
+    ),
+    QuantitySpec(
+        "ee_parent_hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, _parent_body(sym.hybrid_jacobian)),
+        "V_p^h = J_p^h(q) qd, J_p^h = blockdiag(R_p, R_p) J_p",
+        "Hybrid Jacobian of the body each end-effector is attached to (its ee_parent): angular velocity and "
+        "velocity of the body frame's origin, world axes (Skidy's hybrid_jacobian_matrix).",
+        needs_end_effector=True, needs_inertia=False,
+    ),
+    QuantitySpec(
+        "ee_parent_hybrid_jacobian_dot", ("q", "qd"), _ee_jacobian,
+        lambda d: _ee_matrices(d, _parent_body(sym.hybrid_jacobian_dot)),
+        "dJ_p^h/dt = blockdiag(R_p, R_p) (omega~ J_p + dJ_p/dt)",
+        "Time derivative of ee_parent_hybrid_jacobian (Skidy's hybrid_jacobian_matrix_dot).",
+        needs_end_effector=True, needs_inertia=False,
     ),
 )
 
