@@ -19,6 +19,8 @@ from .lowering._xla_cache import default_compilation_cache
 from .lowering._ffi_build import ffi_library, ffi_library_soon
 from .lowering._extension import Method
 from .lowering._native import build, default_backend
+from .description._end_effectors import with_end_effectors
+from .description._yaml_skidy import check_dialect
 from .model._inertia_check import check_inertias
 from .model._robot import Robot
 from .model._standard import body_standard_map
@@ -28,35 +30,48 @@ from .runtime._native import NativeDynamics
 
 
 def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, drives: bool = False,
-         **options) -> Robot:
+         dialect: str = "jaxskid", end_effectors=None, **options) -> Robot:
     """Read a robot from ``.urdf``, ``.yaml``/``.yml`` or ``.json`` (chosen by the file extension).
 
     ``lock`` fixes the named joints at the given positions. ``drives`` gives every moving joint ``J`` a
     drive (:class:`jaxskid.Drive`) with the parameters ``J_Ia`` (armature), ``J_fv`` (viscous friction),
     ``J_fc`` (Coulomb friction) and ``J_fo`` (torque offset), default 0 (for URDF, ``J_fv`` and ``J_fc``
     default to the joint's ``<dynamics damping friction>``; a YAML ``drives`` entry keeps its values).
-    Further keyword options go to the reader (for URDF: ``symbolic_inertia``, ``gravity``, ``end_effectors``,
-    ``mimic``: couple the ``<mimic>`` joints, whose positions then follow the independent joints;
-    ``floating_base``: make the root link a free-flyer base body, :attr:`Robot.floating_base`; a YAML file says so
-    with its own ``floating_base: true`` key).
+    ``dialect="skidy"`` reads a YAML/JSON file as Skidy does (:mod:`jaxskid.description._yaml_skidy`: a serial
+    chain unless both ``parent`` and ``support`` are given, ``frame: com`` carried over to later bodies,
+    assignments of assignments, unknown keys and a prismatic joint's ``vec`` ignored with a warning); a URDF
+    reads the same in both dialects. ``end_effectors``: for any file, ``{name: (link, pose)}`` places
+    end-effectors ``pose`` away from the named links (:mod:`jaxskid.description._end_effectors`), and they
+    replace the file's own; for a URDF also a list of link names (default: the leaf links).
+    Further keyword options go to the URDF reader (``symbolic_inertia``, ``gravity``, ``mimic``: couple the
+    ``<mimic>`` joints, whose positions then follow the independent joints; ``floating_base``: make the root
+    link a free-flyer base body, :attr:`Robot.floating_base`; a YAML file says so with its own
+    ``floating_base: true`` key). A description without ``mass_inertia`` gives a robot for kinematics
+    (:attr:`Robot.without_inertia`).
     """
     p = Path(path)
     ext = p.suffix.lower()
+    check_dialect(dialect)
+    placed = isinstance(end_effectors, Mapping)
     if ext == ".urdf":
         from .description._urdf import read_urdf
 
-        robot = read_urdf(p, lock=lock, drives=drives, **options)
-        check_inertias(robot, str(p), lambda i: f"link {robot.joints[i].link!r} <inertial>")
-        return robot
-    if ext in (".yaml", ".yml", ".json"):
+        robot = read_urdf(p, lock=lock, drives=drives, end_effectors=() if placed else end_effectors, **options)
+        where = lambda i: f"link {robot.joints[i].link!r} <inertial>"  # noqa: E731
+    elif ext in (".yaml", ".yml", ".json"):
         from .description._yaml_schema import read_description
 
         if options:
             raise ModelError(f"unknown option(s) {', '.join(options)} for a {ext} file", source=str(p))
-        robot = read_description(p, lock=lock, drives=drives)
-        check_inertias(robot, str(p), lambda i: f"mass_inertia of body {robot.joints[i].link!r}")
-        return robot
-    raise ModelError(f"unknown file type {ext or '(none)'!r}; expected .urdf, .yaml, .yml or .json", source=str(p))
+        if end_effectors is not None and not placed:
+            raise ModelError("expected end_effectors as {name: (link, pose)} for a description file (its own ee "
+                             "gives the end-effectors)", where="end_effectors", source=str(p))
+        robot = read_description(p, lock=lock, drives=drives, dialect=dialect)
+        where = lambda i: f"mass_inertia of body {robot.joints[i].link!r}"  # noqa: E731
+    else:
+        raise ModelError(f"unknown file type {ext or '(none)'!r}; expected .urdf, .yaml, .yml or .json", source=str(p))
+    check_inertias(robot, str(p), where)
+    return with_end_effectors(robot, end_effectors, source=str(p)) if placed else robot
 
 
 def lower(

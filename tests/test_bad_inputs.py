@@ -26,7 +26,6 @@ BAD = Path(__file__).parent / "data" / "bad"
 CASES = {
     # ---- YAML / JSON: missing keys
     "missing_joint_screw_coord.yaml": ("joint_screw_coord", "required key is missing"),
-    "missing_mass_inertia.yaml": ("mass_inertia", "required key is missing"),
     "missing_gravity.yml": ("gravity", "required key is missing"),
     "missing_mass_key.yaml": ("mass_inertia[1].mass", "required key is missing"),
     "missing_screw_axis.yaml": ("joint_screw_coord[0].axis", "required key is missing"),
@@ -52,6 +51,7 @@ CASES = {
     "json_nan_screw.json": ("joint_screw_coord[0][2]", "expected a finite value, got nan"),
     # masses and inertias
     "negative_mass_6x6.yaml": ("mass_inertia[0]", "expected a non-negative mass (entry [5][5]), got -2"),
+    "assignment_of_assignment.yaml": ("assignments.m2", "expected a number, got 'm1/2', which depends on m1"),
     "negative_mass_assignment.yaml": ("mass_inertia[1].mass", "expected a non-negative mass, got -0.8"),
     "inertia_not_positive_definite.yaml": ("mass_inertia[0]", "expected a positive definite rotational inertia"),
     "inertia_not_symmetric.yaml": ("mass_inertia[0].inertia", "expected a symmetric 3x3 inertia"),
@@ -166,7 +166,7 @@ def test_mimic_joint_is_read_as_independent_with_a_warning_naming_file_and_joint
     assert "'j1'" in warnings[0] and "mimic=True" in warnings[0]
 
 
-SAMPLE = ["missing_mass_inertia.yaml", "json_nan_screw.json", "binary.yaml",
+SAMPLE = ["missing_gravity.yml", "json_nan_screw.json", "binary.yaml",
           "urdf_inertial_without_mass.urdf", "urdf_two_roots.urdf", "empty.urdf", "latin1.yaml"]
 
 

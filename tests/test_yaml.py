@@ -484,7 +484,6 @@ BAD = {
     "unknown_key": (edit(gravitation=[0, 0, 1]), None, "unknown key 'gravitation'"),
     "missing_screws": (edit(joint_screw_coord=None), "joint_screw_coord", "required key is missing"),
     "missing_poses": (edit(body_ref_config=None), "body_ref_config", "required key is missing"),
-    "missing_inertia": (edit(mass_inertia=None), "mass_inertia", "required key is missing"),
     "missing_gravity": (edit(gravity=None), "gravity", "required key is missing"),
     "screws_not_a_list": (edit(joint_screw_coord=5), "joint_screw_coord", "expected a non-empty list"),
     "gravity_size": (edit(gravity=[0, -9.81]), "gravity", "expected 3 values, got 2"),

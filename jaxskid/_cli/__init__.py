@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 
 from ._errors import BadInput
+from ._options import DIALECT, END_EFFECTORS
 
 TARGET_NAMES = ("jax", "python", "c", "cpp", "cython", "julia", "matlab", "latex")
 ROBOT_SUFFIXES = (".urdf", ".yaml", ".yml", ".json", ".py")
@@ -110,13 +111,15 @@ FORCE = click.option("--force", is_flag=True, help="Overwrite existing files.")
 
 
 # ---------------------------------------------------------------------------------------------- loading
-def load_robot(path: str, lock: dict[str, float] | None = None):
-    """A Robot from a description file, or from the variable ``robot`` of a Python file."""
+def load_robot(path: str, lock: dict[str, float] | None = None, dialect: str = "jaxskid", end_effectors=None,
+               **options):
+    """A Robot from a description file (read in ``dialect``), or from the variable ``robot`` of a Python file;
+    ``end_effectors``: ``{name: (link, pose)}`` placed on it (``--ee``)."""
     import jaxskid
 
     p = Path(path)
     if p.suffix.lower() != ".py":
-        return jaxskid.load(p, lock=lock or None)
+        return jaxskid.load(p, lock=lock or None, dialect=dialect, end_effectors=end_effectors or None, **options)
     import runpy
 
     try:
@@ -129,7 +132,12 @@ def load_robot(path: str, lock: dict[str, float] | None = None):
     if not isinstance(robot, jaxskid.Robot):
         raise BadInput(f"{p}: expected the file to define a variable `robot` holding a jaxskid.Robot, "
                        f"got {type(robot).__name__ if 'robot' in ns else 'no such variable'}")
-    return robot.lock(lock) if lock else robot
+    robot = robot.lock(lock) if lock else robot
+    if end_effectors:
+        from ..description._end_effectors import with_end_effectors
+
+        robot = with_end_effectors(robot, end_effectors, source=str(p))
+    return robot
 
 
 # ---------------------------------------------------------------------------------------------- commands
@@ -173,11 +181,23 @@ def cli():
               help="Name of the generated files, module, namespace and function prefix, e.g. the C header "
                    "NAME.h with guard JAXSKID_NAME_H and functions NAME_<quantity> [default: the robot's "
                    "name as an identifier].")
-@click.option("--check/--no-check", default=True, show_default=True, help="Run the numeric self-check.")
+@click.option("--coriolis", default=None, type=click.Choice(("christoffel", "skidy")),
+              help="The Coriolis matrix's factorisation (C qd is the same): christoffel (dM/dt - 2C skew, "
+                   "Pinocchio's) or skidy (Skidy's C) [default: skidy with --dialect skidy, else christoffel].")
+@click.option("--skidy-shapes", is_flag=True,
+              help="Vector outputs as (n, 1) columns, as Skidy's generated code returns them (the jax target keeps "
+                   "(n,)) [default: with --dialect skidy].")
+@click.option("--landscape", is_flag=True, help="With -t latex, landscape pages for long equations.")
+@click.option("--project", default=None, metavar="NAME", help="A project name, stated in every generated file's header.")
+@DIALECT
+@END_EFFECTORS
+@click.option("--check/--no-check", default=True, show_default=True,
+              help="Run the numeric self-check (parameters without a default get random positive values).")
 @click.option("--pdf/--no-pdf", default=True, show_default=True,
               help="With -t latex, typeset the .tex with pdflatex (when installed) and write the .pdf beside it.")
 @FORCE
-def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, trig, name, check, pdf, force):
+def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, trig, name, coriolis, skidy_shapes,
+             landscape, project, dialect, end_effectors, check, pdf, force):
     """Derive and lower ROBOT's equations of motion and write code for the targets.
 
     Prints the quantities with their shapes and operation counts, the derive, lower and compile times,
@@ -191,6 +211,8 @@ def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, tri
           --lock panda_finger_joint2=0 -o out/panda
       jaxskid generate robot.yaml -t latex --symbolic m1,m2 --force
       jaxskid generate robot.yaml -t c --name arm --simplify trigsimp --cse sympy
+      jaxskid generate skidy_robot.yaml --dialect skidy -t python,latex --landscape --project Demo
+      jaxskid generate ur5.urdf -q hybrid_jacobian --ee tool=wrist_3_link@0,0.0823,0
     """
     import jax
 
@@ -198,16 +220,20 @@ def generate(robot, targets, quantities, out, lock, symbolic, simplify, cse, tri
 
     from ._generate import generate_files
 
-    model = load_robot(robot, lock)
+    model = load_robot(robot, lock, dialect, end_effectors)
     if symbolic is not None:
         model = model.keep_symbolic([s.strip() for s in symbolic.split(",") if s.strip()], where="--symbolic")
     if name is not None:
         model = model.renamed(name)
     wanted = _merge(quantities)
     wanted = "all" if wanted and "all" in wanted else wanted
-    options = jaxskid.Options(cse=cse, simplify=simplify, trig=trig)
+    skidy = dialect == "skidy"
+    options = jaxskid.Options(cse=cse, simplify=simplify, trig=trig,
+                              coriolis=coriolis or ("skidy" if skidy else "christoffel"))
+    style = jaxskid.codegen.CodeStyle(shapes="skidy" if skidy_shapes or skidy else "jaxskid", landscape=landscape,
+                                      project=project)
     with jax.enable_x64(True):  # the generated code and the self-check run in float64
-        generate_files(model, _merge(targets) or ("jax",), wanted, out, options=options,
+        generate_files(model, _merge(targets) or ("jax",), wanted, out, options=options, style=style,
                        check=check, force=force, pdf=pdf)
 
 
@@ -314,8 +340,9 @@ def _write_new(path: Path, text: str, force: bool) -> None:
 @click.option("--symbolic-inertia/--numeric-inertia", default=False, show_default=True,
               help="URDF input: write each body's 10 inertial parameters as symbols with their values as "
                    "defaults (<link>_m, <link>_mcx, ...), or as numbers.")
-@click.option("--round", "round_tol", type=click.FloatRange(min=0, max=1e-6), default=None, metavar="TOL",
-              help="Replace numbers within TOL (at most 1e-6) of a simple exact number by it: integers, p/q and "
+@click.option("--round", "round_tol", type=click.FloatRange(min=0, max=1e-4), default=None, metavar="TOL",
+              help="Replace numbers within TOL (at most 1e-4, Skidy's tolerance) of a simple exact number by it: "
+                   "integers, p/q and "
                    "k*pi/q with q <= 12, sqrt(2)/2, sqrt(3)/2 (e.g. 1e-10: 6.1e-17 -> 0, 0.5 -> 1/2, "
                    "1.5707963267948966 -> pi/2; 0.0825 stays), and write rotations with such angles as "
                    "{rpy: [roll, pitch, yaw]}.")
@@ -325,8 +352,10 @@ def _write_new(path: Path, text: str, force: bool) -> None:
                    "default, and each body's inertia its 10 parameters as --symbolic-inertia does. Rotations "
                    "stay numbers.")
 @LOCK
+@DIALECT
+@END_EFFECTORS
 @FORCE
-def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force):
+def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, dialect, end_effectors, force):
     """Convert SOURCE (.urdf, .yaml, .json or .py) to OUTPUT in Skidy's YAML/JSON schema, or to URDF.
 
     The format follows OUTPUT's extension. YAML and JSON (.yaml, .yml, .json) are in the body-fixed
@@ -341,6 +370,8 @@ def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force)
       jaxskid convert ur5.urdf ur5_symbols.yaml --symbolify --round 1e-10
       jaxskid convert arm.yaml arm.json
       jaxskid convert puma_dh.yaml puma.urdf
+      jaxskid convert hopper.urdf hopper.yaml --round 1e-4 --ee foot=link3@0,0,-0.2
+      jaxskid convert skidy_robot.yaml robot.yaml --dialect skidy
     """
     import jaxskid
 
@@ -356,10 +387,8 @@ def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force)
                                f"but a .urdf holds numbers only")
     if Path(output).exists() and not force:
         raise BadInput(f"{output} already exists; use --force to overwrite it")
-    if Path(source).suffix.lower() == ".urdf":
-        robot = jaxskid.load(source, lock=lock or None, symbolic_inertia=symbolic_inertia)
-    else:
-        robot = load_robot(source, lock)
+    urdf = {"symbolic_inertia": symbolic_inertia} if Path(source).suffix.lower() == ".urdf" else {}
+    robot = load_robot(source, lock, dialect, end_effectors, **urdf)
     if round_tol:
         robot = round_robot(robot, round_tol)
     if symbolify:
@@ -378,7 +407,9 @@ def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, force)
 @cli.command()
 @ROBOT
 @LOCK
-def info(robot, lock):
+@DIALECT
+@END_EFFECTORS
+def info(robot, lock, dialect, end_effectors):
     """Print ROBOT's joints, bodies, frames, parameters and kinematic tree.
 
     \b
@@ -388,7 +419,7 @@ def info(robot, lock):
     """
     import jaxskid
 
-    click.echo(jaxskid.describe(load_robot(robot, lock)))
+    click.echo(jaxskid.describe(load_robot(robot, lock, dialect, end_effectors)))
 
 
 @cli.command()
@@ -396,8 +427,10 @@ def info(robot, lock):
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="The picture to write: .svg, .png or .pdf.")
 @LOCK
+@DIALECT
+@END_EFFECTORS
 @FORCE
-def graph(robot, output, lock, force):
+def graph(robot, output, lock, dialect, end_effectors, force):
     """Draw ROBOT's kinematic tree (bodies, joints and frames) to a picture.
 
     \b
@@ -412,7 +445,7 @@ def graph(robot, output, lock, force):
         raise BadInput(f"{output} already exists; use --force to overwrite it")
     import jaxskid
 
-    model = load_robot(robot, lock)
+    model = load_robot(robot, lock, dialect, end_effectors)
     jaxskid.draw_tree(model, output)
     click.echo(f"wrote {output}: kinematic tree of {model.name} ({model.n_dof} joint(s))")
 

@@ -6,7 +6,8 @@ Each check compares two computations that share no derivation step, on random st
   drives, whose friction is unknown here, on the part of tau even in qd: ``(tau(qd) + tau(-qd)) / 2 -
   tau(0, 0) + Q_grav``, since ``fv qd + fc sign(qd)`` is odd and ``fo`` cancels with ``tau(0, 0)``);
 * ``C(q, qd) qd`` from the Coriolis matrix against the Newton-Euler Coriolis forces;
-* ``dM/dt - 2C`` is skew-symmetric, with ``dM/dt`` from ``jax.jvp`` of the mass matrix;
+* ``dM/dt - 2C`` is skew-symmetric, with ``dM/dt`` from ``jax.jvp`` of the mass matrix (for the
+  Christoffel-consistent C only; ``Options(coriolis="skidy")`` gives a C without that property);
 * M is symmetric positive definite;
 * closed-form forward dynamics inverts Newton-Euler: ``FD(q, qd, tau(q, qd, qdd)) = qdd``;
 * the Jacobian maps velocities like a finite difference of forward kinematics.
@@ -66,7 +67,7 @@ def self_check(dyn: Dynamics, params=None, *, n_states: int = 16, seed: int = 0)
     if {"coriolis_matrix", "coriolis_torques"} <= have:
         c = dyn.coriolis_matrix(q, qd, params)
         out.append(Check("C(q, qd) qd = Coriolis forces", _rel(jnp.einsum("bij,bj->bi", c, qd), dyn.coriolis_torques(q, qd, params)), tol))
-    if {"mass_matrix", "coriolis_matrix"} <= have:
+    if {"mass_matrix", "coriolis_matrix"} <= have and dyn.coriolis == "christoffel":  # not Skidy's C
         def mdot(qi, qdi):
             return jax.jvp(lambda x: dyn.mass_matrix(x, params), (qi,), (qdi,))[1]
 

@@ -30,19 +30,24 @@ Example::
 
 Several targets of one request can share the renamed programs: pass the same :class:`Layout`
 (``layout = Layout(eqs, names)``) to :func:`emit` for each target.
+
+A :class:`CodeStyle` changes how the files present the equations, not what they compute: Skidy's ``(n, 1)``
+columns for vectors (``shapes="skidy"``), a landscape LaTeX page, a project name in every header::
+
+    jaxskid.codegen.generate(eqs, "python", "out", style=jaxskid.codegen.CodeStyle(shapes="skidy"))
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .._errors import RequestError
 from ..equations._derive import Equations
 from ._c import emit_c, emit_cpp
-from ._common import Kernel, Layout, portable_names, stem
+from ._common import CodeStyle, Kernel, Layout, portable_names, stem
 from ._cython import emit_cython
 from ._jax import emit_jax, jax_names
 from ._julia import emit_julia
@@ -78,12 +83,15 @@ TARGETS: dict[str, Target] = {
 """Every target :func:`generate` knows, by name."""
 
 
-def emit(eqs: Equations | Layout, target: str, names: Sequence[str] | None = None) -> dict[str, str]:
+def emit(eqs: Equations | Layout, target: str, names: Sequence[str] | None = None, *,
+         style: CodeStyle | None = None) -> dict[str, str]:
     """The files of ``target`` for the quantities ``names`` (default: all of ``eqs``), as
     ``{file name: text}``, without writing anything. Quantities appear in the order of ``eqs.quantities``.
 
     ``eqs`` may be a :class:`Layout` (then ``names`` must be None): its renamed programs serve every
     target that uses its naming, so emitting several targets of one request renames them once.
+    ``style`` (:class:`CodeStyle`, default: the Layout's own, else ``CodeStyle()``) presents the files; the
+    ``"jax"`` target keeps the runtime's shapes.
     """
     if target not in TARGETS:
         raise RequestError(f"unknown target {target!r}; targets are {', '.join(TARGETS)}")
@@ -91,9 +99,15 @@ def emit(eqs: Equations | Layout, target: str, names: Sequence[str] | None = Non
     if isinstance(eqs, Layout):
         if names is not None:
             raise RequestError("emit: pass the quantity names in the Layout, not beside it")
+        style = style or eqs.style
         layout = eqs if eqs.naming is naming else Layout(eqs.eqs, eqs.names, naming)
     else:
         layout = Layout(eqs, _requested(eqs, names), naming)
+    style = style or CodeStyle()
+    if target == "jax":
+        style = replace(style, shapes="jaxskid")
+    if layout.style != style:
+        layout = replace(layout, style=style)
     return TARGETS[target].emit(layout)
 
 
@@ -119,6 +133,7 @@ def generate(
     *,
     names: Sequence[str] | None = None,
     force: bool = False,
+    style: CodeStyle | None = None,
 ) -> list[Path]:
     """Write the code of ``target`` for the quantities ``names`` (default: all of ``eqs``) to ``out_dir``.
 
@@ -128,6 +143,8 @@ def generate(
         out_dir: the folder to write to; created if missing.
         names: the quantities to generate, a subset of ``eqs.quantities``.
         force: overwrite existing files. Without it, nothing is written if any file exists.
+        style: how the files present the equations (:class:`CodeStyle`: Skidy's column shapes, landscape
+            LaTeX, a project name); default ``CodeStyle()``.
 
     Returns:
         the paths written, in a stable order.
@@ -136,7 +153,7 @@ def generate(
         RequestError: an unknown target or a quantity that ``eqs`` lacks.
         FileExistsError: a file exists and ``force`` is false.
     """
-    return write(emit(eqs, target, names), out_dir, force=force)
+    return write(emit(eqs, target, names, style=style), out_dir, force=force)
 
 
 def write(files: Mapping[str, str], out_dir: str | os.PathLike, *, force: bool = False) -> list[Path]:
@@ -160,4 +177,4 @@ def write(files: Mapping[str, str], out_dir: str | os.PathLike, *, force: bool =
     return paths
 
 
-__all__ = ["TARGETS", "Kernel", "Layout", "Target", "emit", "generate", "stem", "write"]
+__all__ = ["TARGETS", "CodeStyle", "Kernel", "Layout", "Target", "emit", "generate", "stem", "write"]

@@ -58,7 +58,7 @@ def emit_latex(layout: Layout) -> dict[str, str]:
     calling = ["Compile: pdflatex " + f"{s}.tex"]
     doc = [comment(layout.header("LaTeX", calling, base=1), "%").rstrip("\n"),
            r"\documentclass[10pt]{article}",
-           r"\usepackage[a4paper,margin=2cm]{geometry}",
+           rf"\usepackage[a4paper,{'landscape,' if layout.style.landscape else ''}margin=2cm]{{geometry}}",
            r"\usepackage{amsmath}",
            r"\usepackage{longtable}",
            r"\allowdisplaybreaks",

@@ -65,7 +65,8 @@ def describe(robot: Robot) -> str:
         mass = m6[5, 5]
         com = [m6[2, 4], m6[0, 5], m6[1, 3]]  # m c~ block: (m c)_x = M[2,4], (m c)_y = M[0,5], (m c)_z = M[1,3]
         com_text = "-" if mass == 0 else "(" + ", ".join(value(c / mass, "{:.4g}") for c in com) + ")"
-        rows.append((i, link, value(mass), com_text))
+        unknown = link in robot.without_inertia  # kinematics only: no mass_inertia in the description
+        rows.append((i, link, "unknown" if unknown else value(mass), "-" if unknown else com_text))
     lines += _table(("#", "body", "mass", "centre of mass, body frame"), rows)
     if robot.frames:
         lines += ["", "frames"]

@@ -14,7 +14,7 @@ Skidy keys
     ``ee``: one pose or a list of poses, each relative to the frame of its ``ee_parent`` body in either
     representation (Skidy: ``FK[ee_parent] * ee``). ``ee_parent``: a 1-based body index (0 = world) or a
     list of them; default: the last body.
-    ``mass_inertia`` (required): per body, a 6x6 matrix ``[[I_o, m c~], [-m c~, m 1]]`` or
+    ``mass_inertia``: per body, a 6x6 matrix ``[[I_o, m c~], [-m c~, m 1]]`` or
     ``{mass, inertia, com, frame}``. ``inertia`` is a 3x3 matrix, six values (Ixx, Ixy, Ixz, Iyy, Iyz, Izz),
     ``{Ixx: .., Iyz: ..}`` (missing entries are 0), a scalar (times the identity) or ``{index, pointmass}``
     (symbols Ixx<index>.. or I<index> times the identity). ``frame: body`` (the default, as Skidy's
@@ -22,10 +22,12 @@ Skidy keys
     it is about the centre of mass, in the axes of a COM frame whose orientation in the body frame is
     ``rotation`` (any rotation form; default the identity): the inertia is turned, ``R I Rᵀ``, and moved by
     the parallel-axis theorem, as Skidy's ``mass_matrix_mixed_data``. ``rotation`` with ``frame: body`` is
-    ignored, as Skidy ignores it, with a :class:`DescriptionWarning`.
+    ignored, as Skidy ignores it, with a :class:`DescriptionWarning`. Without ``mass_inertia`` (or with a
+    ``null`` entry for a body) the bodies' inertia is unknown: the robot serves kinematics, and a quantity
+    that needs inertia is refused with the bodies named (:attr:`Robot.without_inertia`).
     ``parent`` (1-based, 0 = world; each parent must come before its child), ``support`` (root-to-body
     paths) and ``child``: the tree; ``support`` and ``child`` are checked against ``parent``.
-    ``gravity`` (or ``gravity_vector``, required): see below.
+    ``gravity`` (or ``gravity_vector``; required with ``mass_inertia``): see below.
     ``q``, ``qd``, ``q2d``, ``q3d``, ``q4d``: symbol names; the ``q`` names become the joint names.
     ``WEE``, ``WDEE``, ``W2DEE``: end-effector wrenches ``(moment, force)`` and their time derivatives, one
     6-vector for every end-effector or one per end-effector; Skidy applies each at the origin of the
@@ -77,7 +79,7 @@ import sympy as sp
 
 from .._errors import DescriptionWarning, ModelError
 from ..model._robot import Frame, Joint, Robot, spatial_to_body
-from ..model._validate import check_parents, describe
+from ..model._validate import describe
 from ._dh import dh_size, joint_variables, read_dh
 from ._keymap import KeyMap
 from ._wrenches import DescriptionExtras, end_effector_wrenches
@@ -86,6 +88,8 @@ from ._yaml_constraints import read_constraints
 from ._yaml_drives import check_unlocked, read_drives
 from ._yaml_file import load_mapping
 from ._yaml_mimic import read_mimics
+from ._yaml_skidy import check_dialect, skidy_reading
+from ._yaml_tree import is_int, read_tree
 from ._yaml_values import ValueReader
 
 _SKIDY_KEYS = (
@@ -101,22 +105,23 @@ _WRENCHES = ("WEE", "WDEE", "W2DEE")
 
 
 # ---------------------------------------------------------------------------------------------- entry points
-def read_description(path, *, lock: Mapping[str, float] | None = None, drives: bool = False) -> Robot:
+def read_description(path, *, lock: Mapping[str, float] | None = None, drives: bool = False,
+                     dialect: str = "jaxskid") -> Robot:
     """The robot described by a ``.yaml``, ``.yml`` or ``.json`` file in Skidy's schema.
 
     ``lock`` (joint name -> position) is merged over the file's own ``lock`` key. ``drives`` gives every
     moving joint without a ``drives`` entry the drive parameters ``J_Ia, J_fv, J_fc, J_fo`` (default 0,
-    :meth:`Robot.with_drives`). Every problem with the file raises :class:`ModelError` naming the file,
-    the key path and what was expected.
+    :meth:`Robot.with_drives`). ``dialect="skidy"`` reads the file as Skidy does (:mod:`._yaml_skidy`).
+    Every problem with the file raises :class:`ModelError` naming the file, the key path and what was expected.
     """
     path = Path(path)
-    return parse_description(load_mapping(path), source=str(path), lock=lock, drives=drives)
+    return parse_description(load_mapping(path), source=str(path), lock=lock, drives=drives, dialect=dialect)
 
 
 def parse_description(data: Mapping, *, source: str = "<dict>", lock: Mapping[str, float] | None = None,
-                      drives: bool = False) -> Robot:
+                      drives: bool = False, dialect: str = "jaxskid") -> Robot:
     """The robot described by an already loaded mapping; ``source`` names it in error messages."""
-    parsed = _parse(data, source)
+    parsed = _parse(data, source, dialect)
     try:
         robot = Robot.create(**parsed.arguments)
         locked = {**parsed.lock, **(lock or {})}
@@ -129,15 +134,15 @@ def parse_description(data: Mapping, *, source: str = "<dict>", lock: Mapping[st
         raise ModelError(f"cannot check the model numerically with the default values ({exc})", source=source) from None
 
 
-def read_extras(path) -> DescriptionExtras:
+def read_extras(path, *, dialect: str = "jaxskid") -> DescriptionExtras:
     """The symbol names and end-effector wrenches of a description file (see :class:`DescriptionExtras`)."""
     path = Path(path)
-    return parse_extras(load_mapping(path), source=str(path))
+    return parse_extras(load_mapping(path), source=str(path), dialect=dialect)
 
 
-def parse_extras(data: Mapping, *, source: str = "<dict>") -> DescriptionExtras:
+def parse_extras(data: Mapping, *, source: str = "<dict>", dialect: str = "jaxskid") -> DescriptionExtras:
     """:func:`read_extras` for an already loaded mapping; the whole description is validated."""
-    parsed = _parse(data, source)
+    parsed = _parse(data, source, dialect)
     try:
         Robot.create(**parsed.arguments)
     except ModelError as exc:
@@ -145,8 +150,10 @@ def parse_extras(data: Mapping, *, source: str = "<dict>") -> DescriptionExtras:
     return parsed.extras
 
 
-def _parse(data, source: str) -> "_Parsed":
+def _parse(data, source: str, dialect: str = "jaxskid") -> "_Parsed":
     try:
+        if check_dialect(dialect) == "skidy":
+            data = skidy_reading(data, source, _SKIDY_KEYS + _JAXSKID_KEYS)
         return _Parser(data, source).parse()
     except ModelError as exc:
         raise exc.located(source=source) from None
@@ -192,7 +199,7 @@ class _Parser(ValueReader):
         extras = self.extras(names, joint_names, ees, [pose for _, _, pose, _ in ee_entries])
         name = self.name_value(d.get("name", _default_name(self.source)), "name")
         arguments = dict(name=name, joints=joints, gravity=gravity, frames=frames, end_effectors=ees,
-                         defaults=defaults, base=base)
+                         defaults=defaults, base=base, without_inertia=self.without_inertia)
         arguments["constraints"] = read_constraints(self, d.get("constraints"), self.keys)
         arguments.update(read_floating_base(self, d, self.keys))
         return _Parsed(arguments, self.lock(), extras, self.keys)
@@ -207,11 +214,9 @@ class _Parser(ValueReader):
             if key not in allowed:
                 raise self.error(None, f"unknown key {key!r}; expected one of {', '.join(allowed)}")
         geometry = ("joint_screw_coord", "body_ref_config") if "dh" not in d else ()
-        for key in (*geometry, "mass_inertia"):
+        for key in geometry:
             if key not in d:
-                raise self.error(key, "required key is missing" + (
-                    " (the 6x6 mass-inertia matrix of every body; jaxskid does not assume massless bodies)"
-                    if key == "mass_inertia" else ""))
+                raise self.error(key, "required key is missing")
         if "dh" in d:
             given = [key for key in _GEOMETRY_KEYS if key in d]
             if given:
@@ -226,7 +231,7 @@ class _Parser(ValueReader):
 
     def joints(self, n, joint_names, link_names) -> list[Joint]:
         if "dh" in self.data:
-            parents = self.tree(n)
+            parents = read_tree(self, n)
             variables = {**joint_variables(joint_names), **joint_variables(self.data.get("q") or [])}
             types, screws, poses = read_dh(self.data["dh"], self, parents, variables)
             for i in range(n):
@@ -234,8 +239,11 @@ class _Parser(ValueReader):
                 self.keys.add(f"joints[{i}].origin", f"dh.joints[{i}]")
         else:
             types, screws, poses, parents = self.screws_and_poses(n)
-        inertias_in = self.entries("mass_inertia", n)
-        inertias = [self.mass_inertia(m, f"mass_inertia[{i}]") for i, m in enumerate(inertias_in)]
+        # without mass_inertia, or with a null entry, a body's inertia is unknown: kinematics only
+        inertias_in = self.entries("mass_inertia", n) if "mass_inertia" in self.data else [None] * n
+        inertias = [sp.zeros(6) if m is None else self.mass_inertia(m, f"mass_inertia[{i}]")
+                    for i, m in enumerate(inertias_in)]
+        self.without_inertia = [link_names[i] for i, m in enumerate(inertias_in) if m is None]
         for i in range(n):
             self.keys.add(f"joints[{i}].inertia", f"mass_inertia[{i}]")
         drives = read_drives(self, self.data.get("drives"), n, self.keys)
@@ -248,7 +256,7 @@ class _Parser(ValueReader):
         representation = self.data.get("representation", "spatial")
         if representation not in ("spatial", "body_fixed"):
             raise self.error("representation", f"expected spatial or body_fixed, got {describe(representation)}")
-        parents = self.tree(n)
+        parents = read_tree(self, n)
         poses_in = self.entries("body_ref_config", n)
         typed = [self.screw(s, f"joint_screw_coord[{i}]") for i, s in enumerate(self.data["joint_screw_coord"])]
         poses = [self.pose(p, f"body_ref_config[{i}]") for i, p in enumerate(poses_in)]
@@ -308,73 +316,13 @@ class _Parser(ValueReader):
         if "gravity" in d and "gravity_vector" in d:
             raise self.error("gravity", "give either gravity or gravity_vector, not both")
         key = "gravity" if "gravity" in d or "gravity_vector" not in d else "gravity_vector"
+        if key not in d and "mass_inertia" not in d:
+            return [0, 0, 0]  # kinematics only: no body has a mass
         if key not in d:
             raise self.error("gravity", "required key is missing (the gravitational acceleration in the world frame, "
                                         "e.g. [0, 0, -g] when z points up)")
         self.keys.add("gravity", key)
         return self.vector(d[key], 3, key)
-
-    def tree(self, n) -> list[int]:
-        """0-based parent indices (-1 = world) from ``parent``, or from ``support``, checked for consistency."""
-        d = self.data
-        support = d.get("support")
-        if support is not None:
-            if not isinstance(support, list) or len(support) != n:
-                raise self.error("support", f"expected {n} lists (one per joint), got {describe(support)}")
-            for i, s in enumerate(support):
-                if not isinstance(s, list) or not s or not all(_is_int(b) and 1 <= b <= n for b in s):
-                    raise self.error(f"support[{i}]", f"expected a non-empty list of body indices in 1..{n}, got {describe(s)}")
-                if s[-1] != i + 1:
-                    raise self.error(f"support[{i}]", f"expected the path from the root to body {i + 1}, ending with {i + 1}, got {s}")
-        if "parent" in d:
-            key, given = "parent", d["parent"]
-            if not isinstance(given, list) or len(given) != n:
-                raise self.error("parent", f"expected {n} body indices (one per joint), got {describe(given)}")
-        elif support is not None:
-            key, given = "support", [s[-2] if len(s) > 1 else 0 for s in support]
-        else:
-            key, given = "parent", list(range(n))
-        check_parents(given, first=1, where=lambda i: f"{key}[{i}]", where_all=key)
-        self.check_paths(given, key, support)
-        return [p - 1 for p in given]
-
-    def check_paths(self, given, key, support) -> None:
-        """``support`` and ``child`` against the 1-based parents ``given`` (from ``key``)."""
-        n = len(given)
-        paths = []
-        for i in range(n):
-            path = [i + 1]
-            while given[path[0] - 1] != 0:
-                path.insert(0, given[path[0] - 1])
-            paths.append(path)
-        for i, s in enumerate(support or ()):
-            if s != paths[i]:
-                raise self.error(f"support[{i}]", f"expected {paths[i]} (the bodies from the root to body {i + 1} "
-                                                  f"given by {key}), got {s}")
-        self.check_children(given, key)
-
-    def check_children(self, given, key) -> None:
-        """``child`` against the 1-based parents ``given``. Skidy reads only ``parent`` (its own example files
-        carry ``child`` lists off by one), so a ``child`` that disagrees is ignored with one warning that
-        names what the parents make of it."""
-        child = self.data.get("child")
-        if child is None:
-            return
-        n = len(given)
-        expected = [[k + 1 for k in range(n) if given[k] == i + 1] for i in range(n)]
-        problem = None
-        if not isinstance(child, list) or len(child) != n:
-            problem = f"expected {n} lists (one per joint), got {describe(child)}"
-        else:
-            for i, c in enumerate(child):
-                if not isinstance(c, list) or not all(_is_int(b) for b in c) or sorted(c) != expected[i]:
-                    shown = c if isinstance(c, list) else describe(c)
-                    problem = f"child[{i}] is {shown}, but the bodies whose parent is body {i + 1} are {expected[i]}"
-                    break
-        if problem is not None:
-            warnings.warn(
-                f"{self.source}: child: ignored, as Skidy ignores it: {problem}. The tree follows {key}, "
-                f"which gives child: {expected}", DescriptionWarning, stacklevel=2)
 
     def frames(self, n, link_names, base) -> tuple[list[Frame], list[tuple]]:
         """Named frames (end-effectors first, then ``frames``) and the end-effectors' entries
@@ -439,7 +387,7 @@ class _Parser(ValueReader):
         else:
             parents, keys = [parents] * k, ["ee_parent"] * k
         for p, key in zip(parents, keys):
-            if not _is_int(p) or not 0 <= p <= n:
+            if not is_int(p) or not 0 <= p <= n:
                 raise self.error(key, f"expected a body index in 0..{n} (0 is the world), got {describe(p)}")
         return parents
 
@@ -452,7 +400,7 @@ class _Parser(ValueReader):
         for i, f in enumerate(value):
             where = f"frames[{i}]"
             f = self.mapping(f, where, ("name", "parent", "pose"), required=("name", "parent"))
-            if not _is_int(f["parent"]) or not 0 <= f["parent"] <= n:
+            if not is_int(f["parent"]) or not 0 <= f["parent"] <= n:
                 raise self.error(f"{where}.parent", f"expected a body index in 0..{n} (0 is the world), "
                                                     f"got {describe(f['parent'])}")
             pose = self.pose(f["pose"], f"{where}.pose") if "pose" in f else sp.eye(4)
@@ -493,7 +441,3 @@ class _Parser(ValueReader):
 
 def _default_name(source: str) -> str:
     return "robot" if source.startswith("<") else Path(source).stem
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)

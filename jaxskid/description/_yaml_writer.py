@@ -84,7 +84,8 @@ def robot_to_dict(robot: Robot, *, rotations: str = "matrix") -> dict:
     out["parent"] = [p + 1 for p in robot.parents]
     out["joint_screw_coord"] = [[_value(e) for e in j.screw] for j in robot.joints]
     out["body_ref_config"] = [_pose(j.origin, rotations) for j in robot.joints]
-    out["mass_inertia"] = [_rows(j.inertia) for j in robot.joints]
+    if len(robot.without_inertia) < robot.n_bodies:  # a body without one is null; none at all: no key
+        out["mass_inertia"] = [None if j.link in robot.without_inertia else _rows(j.inertia) for j in robot.joints]
     if robot.floating_base:
         out["floating_base"] = True
         out["base_inertia"] = _rows(robot.base_inertia)

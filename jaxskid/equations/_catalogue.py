@@ -41,6 +41,9 @@ class QuantitySpec:
     pullback_of: str | None = None
     """For a pullback (``<name>_vjp``): the quantity it differentiates; :func:`~jaxskid.equations.derive` builds
     it from that quantity's outputs, by the same route (:func:`~jaxskid.symbolic.pullback`)."""
+    needs_inertia: bool = True
+    """Whether it depends on the bodies' mass-inertia; ``False`` for the kinematic quantities, which a robot
+    with bodies :attr:`~jaxskid.Robot.without_inertia` still has."""
 
     def builder(self, route: str) -> Callable[[Derivation], list]:
         """The builder of ``route`` (``"screw"`` or ``"lagrange"``)."""
@@ -83,6 +86,15 @@ def _ee_matrices(d: Derivation, fn) -> list:
         cols = fn(d, name)
         out.append([[c[k] for c in cols] for k in range(6)])
     return _flat(out)
+
+
+def _parent_body(fn) -> Callable[[Derivation, str], list]:
+    """``fn`` of the body an end-effector is attached to (its ``ee_parent``: a link, or the base), given the
+    end-effector's name."""
+    def of_parent(d: Derivation, name: str) -> list:
+        body = d.robot.frame(name).body
+        return fn(d, d.robot.base if body < 0 else d.robot.joints[body].link)
+    return of_parent
 
 
 def _wrenches(d: Derivation, order: int) -> dict:
@@ -187,7 +199,8 @@ def _time_derivatives(k: int) -> tuple[QuantitySpec, ...]:
             "coriolis_matrix" + suffix, state[: k + 2], _square,
             lambda d: _matrix(sym.coriolis_matrix_derivative(d, k)),
             f"{dt} C(q, qd)",
-            f"{word} time derivative of the Christoffel-consistent Coriolis matrix of coriolis_matrix.",
+            f"{word} time derivative of the Coriolis matrix of coriolis_matrix (in the factorisation of "
+            "Options.coriolis).",
         ),
         QuantitySpec(
             "gravity_torques" + suffix, state[: k + 1], _vector,
@@ -208,7 +221,7 @@ def _time_derivatives(k: int) -> tuple[QuantitySpec, ...]:
             f"{dt} Q_ext = {dt} sum_e J_e^T W_e",
             f"{word} time derivative of the generalized end-effector forces, from the wrenches and their "
             f"time derivatives ({', '.join(wrenches[1:])}), (moment, force) in each end-effector's frame.",
-            needs_end_effector=True,
+            needs_end_effector=True, needs_inertia=False,
         ),
     )
 
@@ -223,7 +236,8 @@ _CATALOGUE = (
     QuantitySpec(
         "coriolis_matrix", ("q", "qd"), _square, lambda d: _matrix(sym.coriolis_matrix(d)),
         "C(q, qd) = J^T (diag(M_i) dJ/dt + B(V) J)",
-        "Coriolis/centrifugal matrix; C qd are the Coriolis forces and dM/dt - 2C is skew-symmetric.",
+        "Coriolis/centrifugal matrix; C qd are the Coriolis forces. Options.coriolis picks B: 'christoffel' "
+        "(default; dM/dt - 2C is skew-symmetric, Pinocchio's C) or 'skidy' (B(V) = -ad(V)^T M, Skidy's C).",
         derivatives=("coriolis_matrix_vjp",),
     ),
     QuantitySpec(
@@ -247,86 +261,96 @@ _CATALOGUE = (
         "Q_ext = sum_e J_e(q)^T W_e",
         "Generalized forces of end-effector wrenches W_e (moment, force) in each end-effector's frame; "
         "W_e is what the end-effector exerts on its environment, so tau = M qdd + C qd + Q_grav + Q_ext.",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "forward_kinematics", ("q",), _poses,
         lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.frame_names]),
         "C_f(q) = C_body(q) T_f", "World pose of every named frame (bodies, merged links, end-effectors).",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "body_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian),
         "V_e = J_e(q) qd, body-fixed", "Body Jacobian of each end-effector: twist (omega, v) in its own frame.",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian),
         "V_e^h = J_e^h(q) qd", "Hybrid Jacobian of each end-effector: (omega, velocity of the origin) in world axes.",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
     ),
     *_time_derivatives(1),
     *_time_derivatives(2),
     QuantitySpec(
         "body_twist", ("q", "qd"), _per_body, lambda d: _bodies(d, sym.twist),
         "V_i^ = C_i^-1 dC_i/dt, (omega, v)", "Body twist of every moving body, in its own frame.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_twist", ("q", "qd"), _per_body, lambda d: _bodies(d, sym.body_hybrid_twist),
         "V_i^h = (R_i omega_i, dp_i/dt)",
         "Hybrid twist of every moving body: angular velocity and velocity of the frame origin, world axes.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "body_acceleration", ("q", "qd", "qdd"), _per_body,
         lambda d: _bodies(d, lambda d_, i: sym.acceleration(d_, i, Terms.MOTION)),
         "dV_i/dt", "Time derivative of the body twist of every moving body (Pinocchio's LOCAL spatial "
         "acceleration); gravity not included.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_acceleration", ("q", "qd", "qdd"), _per_body, lambda d: _bodies(d, sym.body_hybrid_acceleration),
         "dV_i^h/dt = (domega_i/dt, d^2p_i/dt^2)",
         "Time derivative of the hybrid twist of every moving body: angular acceleration and classical "
         "acceleration of the frame origin, world axes; gravity not included.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "ee_body_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 0)),
-        "V_e = J_e qd", "Body twist (omega, v) of each end-effector, in its own frame.", needs_end_effector=True,
+        "V_e = J_e qd", "Body twist (omega, v) of each end-effector, in its own frame.",
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "ee_hybrid_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, sym.frame_hybrid_twist),
         "V_e^h = J_e^h qd = (omega, dp_e/dt)", "Hybrid twist of each end-effector (world axes, at its origin).",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "ee_body_acceleration", ("q", "qd", "qdd"), _per_ee,
         lambda d: _end_effectors(d, lambda d_, f: sym.frame_motion(d_, f, 1)),
         "dV_e/dt = J_e qdd + dJ_e/dt qd", "Time derivative of each end-effector's body twist; gravity not included.",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "ee_hybrid_acceleration", ("q", "qd", "qdd"), _per_ee,
         lambda d: _end_effectors(d, sym.frame_hybrid_acceleration),
         "dV_e^h/dt = J_e^h qdd + dJ_e^h/dt qd = (domega/dt, d^2p_e/dt^2)",
         "Time derivative of each end-effector's hybrid twist (classical acceleration of its origin, world axes).",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "system_jacobian", ("q",), _system, lambda d: _flat(sym.system_jacobian(d)),
         "V = J qd, J = (I - A)^-1 X",
         "Body-fixed system Jacobian: block row i is body i's body Jacobian (rows (omega, v) in body i's frame); "
         "a floating base's block row (I_6, 0) comes first.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "system_jacobian_dot", ("q", "qd"), _system, lambda d: _flat(sym.system_jacobian_dot(d)),
         "dJ/dt, dV/dt = J qdd + dJ/dt qd", "Time derivative of the body-fixed system Jacobian.",
+        needs_inertia=False,
     ),
     QuantitySpec(
         "body_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.body_jacobian_dot),
-        "dJ_e/dt", "Time derivative of each end-effector's body Jacobian.", needs_end_effector=True,
+        "dJ_e/dt", "Time derivative of each end-effector's body Jacobian.",
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "hybrid_jacobian_dot", ("q", "qd"), _ee_jacobian, lambda d: _ee_matrices(d, sym.hybrid_jacobian_dot),
         "dJ_e^h/dt = blockdiag(R, R) (omega~ J_e + dJ_e/dt)",
-        "Time derivative of each end-effector's hybrid Jacobian.", needs_end_effector=True,
+        "Time derivative of each end-effector's hybrid Jacobian.",
+        needs_end_effector=True, needs_inertia=False,
     ),
     QuantitySpec(
         "forward_dynamics", ("q", "qd", "tau"), _vector, lambda d: sym.forward_dynamics(d, d.inputs.tau),
@@ -338,8 +362,9 @@ _CATALOGUE = (
     QuantitySpec(
         "regressor", ("q", "qd", "qdd"), _regressor, lambda d: _flat(sym.regressor(d)),
         "tau = Y(q, qd, qdd) pi",
-        "Inertial-parameter regressor: tau is Y times the standard parameters pi (10 per body: m, m c, "
-        "Ixx, Ixy, Iyy, Ixz, Iyz, Izz about the body frame origin), see jaxskid.standard_params.",
+        "Inertial-parameter regressor: tau is Y times the standard parameters pi, 10 columns per body in the "
+        "order m, mcx, mcy, mcz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (inertia about the body frame origin; Pinocchio's "
+        "order; Skidy's swaps Iyy and Ixz), then the drives' Ia, fv, fc, fo; see jaxskid.standard_params.",
     ),
     QuantitySpec(
         "inverse_dynamics_vjp", ("q", "qd", "qdd", "cotangent"), _vjp, sym.inverse_dynamics_vjp,
@@ -394,16 +419,19 @@ _CATALOGUE = (
         "(jaxskid.PointContact, FrameContact, LoopClosure), one column per velocity coordinate; M qdd + h = "
         "tau + A^T lambda, lambda the constraint wrenches (moment, force) in world axes.",
         needs_constraints=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "constraint_drift", ("q", "qd"), _constraint_rows, sym.constraint_drift,
         "Adot(q, qd) qd", "Drift term of the constraints: A qdd + Adot qd = d^2 phi/dt^2 (the frames' classical "
         "accelerations at qdd = 0, without gravity).", needs_constraints=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "constraint_residual", ("q",), _constraint_rows, sym.constraint_residual,
         "phi(q)", "Position residual of the constraints, zero where they hold: p_a - p_b along the translations, "
         "the axis of the skew part of R_a R_b^T (sin(angle) axis) about the rotations.", needs_constraints=True,
+        needs_inertia=False,
     ),
     QuantitySpec(
         "center_of_mass", ("q",), lambda r: (3,), sym.center_of_mass,
@@ -423,7 +451,21 @@ _CATALOGUE = (
         "ee_pose", ("q",), lambda r: (len(r.end_effectors), 4, 4),
         lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.end_effectors]),
         "C_e(q) = C_body(q) T_e", "World pose of each end-effector: forward_kinematics of those frames alone.",
-        needs_end_effector=True,
+        needs_end_effector=True, needs_inertia=False,
+    ),
+    QuantitySpec(
+        "ee_parent_hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, _parent_body(sym.hybrid_jacobian)),
+        "V_p^h = J_p^h(q) qd, J_p^h = blockdiag(R_p, R_p) J_p",
+        "Hybrid Jacobian of the body each end-effector is attached to (its ee_parent): angular velocity and "
+        "velocity of the body frame's origin, world axes (Skidy's hybrid_jacobian_matrix).",
+        needs_end_effector=True, needs_inertia=False,
+    ),
+    QuantitySpec(
+        "ee_parent_hybrid_jacobian_dot", ("q", "qd"), _ee_jacobian,
+        lambda d: _ee_matrices(d, _parent_body(sym.hybrid_jacobian_dot)),
+        "dJ_p^h/dt = blockdiag(R_p, R_p) (omega~ J_p + dJ_p/dt)",
+        "Time derivative of ee_parent_hybrid_jacobian (Skidy's hybrid_jacobian_matrix_dot).",
+        needs_end_effector=True, needs_inertia=False,
     ),
     _pullback("mass_matrix", ("q",), "cotangent_matrix", "M(q)"),
     _pullback("coriolis_matrix", ("q", "qd"), "cotangent_matrix", "C(q, qd)"),

@@ -139,8 +139,26 @@ def resolve(robot: Robot, quantities: Sequence[str] | str | None) -> tuple[str, 
         elif bad := [q for q in names if QUANTITIES[q].needs_constraints]:
             raise RequestError(f"{', '.join(bad)} need constraints, and robot {robot.name!r} has none; give them with "
                                "robot.with_constraints([...]) or a constraints block")
+    if robot.without_inertia:
+        names = _without_inertia(robot, names, quantities is None or quantities == "all")
     order = list(QUANTITIES)
     return tuple(sorted(dict.fromkeys(names), key=order.index))
+
+
+def _without_inertia(robot: Robot, names: list[str], default: bool) -> list[str]:
+    """``names`` for a robot with bodies :attr:`~Robot.without_inertia`: the default request keeps the kinematic
+    quantities; a request that names one that needs inertia is a :class:`RequestError` naming the bodies."""
+    if default:
+        return [q for q in names if not QUANTITIES[q].needs_inertia]
+    bad = [q for q in names if QUANTITIES[q].needs_inertia]
+    if not bad:
+        return names
+    bodies, kinematic = ", ".join(robot.without_inertia), [q for q in QUANTITIES if not QUANTITIES[q].needs_inertia]
+    raise RequestError(
+        f"{', '.join(bad)} need{'s' * (len(bad) == 1)} the mass and inertia of every body, and robot "
+        f"{robot.name!r} has none for body {bodies}: its description gives no mass_inertia for "
+        f"{'them' if len(robot.without_inertia) > 1 else 'it'}. Expected a mass_inertia entry per body, or a "
+        f"kinematic quantity ({', '.join(kinematic)})")
 
 
 def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
@@ -172,7 +190,8 @@ def derive(
         raise RequestError(f"Options(route='lagrange') not available: robot {robot.name!r} has a floating base; "
                            "use the default route 'screw'")
     inputs = Inputs.of(robot)
-    d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing))
+    d = Derivation(robot, inputs, trig=options.trig, friction_smoothing=float(options.friction_smoothing),
+                   coriolis=options.coriolis)
     built: dict[str, list] = {}
     for name in _progress(names, progress):
         spec = QUANTITIES[name]

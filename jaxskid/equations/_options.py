@@ -14,6 +14,7 @@ _ALLOWED = {
     "simplify": ("none", "expand", "trigsimp"),
     "trig": ("symbols", "inline"),
     "route": ("screw", "lagrange"),
+    "coriolis": ("christoffel", "skidy"),
 }
 
 
@@ -37,6 +38,10 @@ class Options:
             Lie-group recursions (Newton-Euler, composite rigid body). ``"lagrange"``: the Euler-Lagrange
             equations of the link energies (:mod:`jaxskid.symbolic._lagrange`), the seed blog's route, a
             larger program. Every other quantity is the same on both routes.
+        coriolis: the factorisation of the Coriolis matrix ``coriolis_matrix`` and its time derivatives
+            (:mod:`jaxskid.symbolic._coriolis`); ``C qd`` is the same for both. ``"christoffel"`` (default):
+            Christoffel-consistent, ``dM/dt - 2C`` skew-symmetric, as Pinocchio's ``computeCoriolisMatrix``.
+            ``"skidy"``: ``C = -J^T (M A a + b^T M) J`` of Müller & Kumar (2021), as Skidy computes it.
     """
 
     cse: str = "tape"
@@ -44,6 +49,7 @@ class Options:
     trig: str = "symbols"
     route: str = "screw"
     friction_smoothing: float = 0.0
+    coriolis: str = "christoffel"
 
     def __post_init__(self):
         for field_name, allowed in _ALLOWED.items():

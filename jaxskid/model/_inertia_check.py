@@ -1,6 +1,7 @@
 """Whether a robot's default inertias make a usable model: checked when a description is loaded.
 
-Two checks, at the default parameter values (a robot with parameters that have no default is not checked):
+Two checks, at the default parameter values (a robot with parameters that have no default, or with bodies
+whose mass-inertia is unknown, :attr:`~jaxskid.Robot.without_inertia`, is not checked):
 
 * **A joint that moves nothing.** The mass matrix is positive definite only if every moving joint carries
   inertia along its own axis: for joint ``i`` with unit screw ``X_i`` and the composite inertia ``I^c_i``
@@ -62,8 +63,8 @@ def check_inertias(robot, source: str | None = None, where: Callable[[int], str]
     bodies that are not physically consistent (module docstring). ``where(i)``: the key of body ``i`` in
     the description (default ``"body '<link>'"``); ``source``: the file, for the messages."""
     defaults = robot.default_params()
-    if any(k not in defaults for k in robot.parameters):
-        return
+    if robot.without_inertia or any(k not in defaults for k in robot.parameters):
+        return  # kinematics only (Robot.without_inertia), or parameters without a number
     values = {symbol(k): sp.Float(v) for k, v in defaults.items()}
     joints = robot.joints
     origins = [_numeric(j.origin, values) for j in joints]

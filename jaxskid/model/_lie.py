@@ -205,3 +205,24 @@ def standard_parameters(m6: sp.Matrix) -> tuple:
 
 
 STANDARD_PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+def spatial_to_body(
+    screws_world: Sequence[Sequence],
+    poses_world: Sequence[sp.Matrix],
+    parents: Sequence[int],
+) -> tuple[list[tuple], list[sp.ImmutableMatrix]]:
+    """Convert the spatial representation to the body-fixed one.
+
+    Given each joint's screw ``Y_i`` in world coordinates and each body's reference pose ``A_i`` in the
+    world at ``q = 0``, returns ``X_i = Ad(A_i^-1) Y_i`` and ``B_i = A_{p(i)}^-1 A_i`` (Müller 2018, eq. 25).
+    """
+    screws, origins = [], []
+    for i, (y, a) in enumerate(zip(screws_world, poses_world)):
+        a = sp.Matrix(a)
+        x = adjoint(inverse(a)) * sp.Matrix(list(y))
+        screws.append(tuple(sp.expand(e) for e in x))
+        p = parents[i]
+        b = a if p < 0 else inverse(poses_world[p]) * a
+        origins.append(sp.ImmutableMatrix(b.applyfunc(sp.expand)))
+    return screws, origins

@@ -36,6 +36,7 @@ from ._constraint import check_constraints, constraint_symbols
 from ._drive import Drive, drive_parameter_names
 from ._fixed import lock_joint, merge_fixed
 from ._joint import Frame, Joint, JointLimits
+from ._lie import spatial_to_body
 from ._mimic import Mimic, follow_locks, resolve
 from ._validate import check_defaults, check_mass_inertia, check_parents, describe, symbol, to_expr, validate
 
@@ -70,6 +71,9 @@ class Robot:
         base_inertia: the 6x6 mass-inertia of the floating base body in its own frame (``None`` for a fixed
             base; zero unless given); fixed links welded to the root are added to it.
         constraints: contacts and loop closures (:mod:`jaxskid.model._constraint`), their anchors computed.
+        without_inertia: the bodies (link names) whose mass-inertia the description does not give: their
+            inertia is zero, the robot serves kinematics, and a quantity that needs inertia is refused
+            (:func:`jaxskid.equations.resolve`).
     """
 
     name: str
@@ -82,6 +86,7 @@ class Robot:
     floating_base: bool = False
     base_inertia: sp.ImmutableMatrix | None = None
     constraints: tuple = ()
+    without_inertia: tuple[str, ...] = ()
     _parameters: tuple[str, ...] = field(default=(), compare=False, repr=False)
 
     # ------------------------------------------------------------------ construction
@@ -98,10 +103,12 @@ class Robot:
         floating_base: bool = False,
         base_inertia=None,
         constraints: Sequence = (),
+        without_inertia: Sequence[str] = (),
     ) -> "Robot":
         """Build and validate a robot. Joints of type ``"fixed"`` are merged into their parent body; with
         ``floating_base``, those welded to the root are merged into the base body, whose own 6x6 mass-inertia is
-        ``base_inertia`` (zero if not given).
+        ``base_inertia`` (zero if not given). ``without_inertia`` names the bodies (links, or fixed links merged
+        into a body) whose mass-inertia is unknown (a reader gives them zero inertia).
 
         Raises:
             ModelError: the first invariant that does not hold, at the caller's key path
@@ -128,6 +135,8 @@ class Robot:
         if constraints:  # checked on the merged tree, whose frames they name
             values = {symbol(k): v for k, v in clean.items()}
             object.__setattr__(robot, "constraints", check_constraints(robot, constraints, values))
+        if without_inertia:
+            object.__setattr__(robot, "without_inertia", _bodies_of(robot, without_inertia))
         object.__setattr__(robot, "_parameters", robot._find_parameters())
         return robot
 
@@ -136,7 +145,7 @@ class Robot:
         args = dict(name=self.name, joints=self.joints, gravity=self.gravity, frames=self.frames,
                     end_effectors=self.end_effectors, defaults=dict(self.defaults), base=self.base,
                     floating_base=self.floating_base, base_inertia=self.base_inertia,
-                    constraints=self.constraints)
+                    constraints=self.constraints, without_inertia=self.without_inertia)
         return Robot.create(**{**args, **changes})
 
     # ------------------------------------------------------------------ views
@@ -287,6 +296,8 @@ class Robot:
         for c in self.constraints:  # a robot without constraints hashes as it did before they existed
             h.update(repr((type(c).__name__, c.frames, c.axes)).encode())
             h.update(sp.srepr(c.anchor).encode())
+        if self.without_inertia:  # the same for a robot whose inertias are all known
+            h.update(repr(("without_inertia", self.without_inertia)).encode())
         return h.hexdigest()
 
     # ------------------------------------------------------------------ derived models
@@ -405,6 +416,16 @@ class Robot:
         return tuple(seen)
 
 
+def _bodies_of(robot: Robot, links: Sequence[str]) -> tuple[str, ...]:
+    """The moving bodies that ``links`` are or were merged into (a link welded to the world drops out), in
+    body order; an unknown name is a :class:`ModelError` at ``without_inertia``."""
+    known = set(robot.frame_names)
+    if bad := [k for k in links if k not in known]:
+        raise ModelError(f"unknown link(s) {', '.join(map(repr, bad))}", where="without_inertia")
+    bodies = {robot.frame(k).body for k in links}
+    return tuple(j.link for i, j in enumerate(robot.joints) if i in bodies)
+
+
 def _normalize_joint(j: Joint, i: int) -> Joint:
     where = f"joints[{i}]"
     if not isinstance(j, Joint):
@@ -474,24 +495,3 @@ def _matrix(value, shape, where) -> sp.ImmutableMatrix:
         raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got shape {got}", where=where)
     return sp.ImmutableMatrix(shape[0], shape[1], [to_expr(x, where=f"{where}[{r}][{c}]")
                                                    for r, row in enumerate(rows) for c, x in enumerate(row)])
-
-
-def spatial_to_body(
-    screws_world: Sequence[Sequence],
-    poses_world: Sequence[sp.Matrix],
-    parents: Sequence[int],
-) -> tuple[list[tuple], list[sp.ImmutableMatrix]]:
-    """Convert the spatial representation to the body-fixed one.
-
-    Given each joint's screw ``Y_i`` in world coordinates and each body's reference pose ``A_i`` in the
-    world at ``q = 0``, returns ``X_i = Ad(A_i^-1) Y_i`` and ``B_i = A_{p(i)}^-1 A_i`` (Müller 2018, eq. 25).
-    """
-    screws, origins = [], []
-    for i, (y, a) in enumerate(zip(screws_world, poses_world)):
-        a = sp.Matrix(a)
-        x = lie.adjoint(lie.inverse(a)) * sp.Matrix(list(y))
-        screws.append(tuple(sp.expand(e) for e in x))
-        p = parents[i]
-        b = a if p < 0 else lie.inverse(poses_world[p]) * a
-        origins.append(sp.ImmutableMatrix(b.applyfunc(sp.expand)))
-    return screws, origins

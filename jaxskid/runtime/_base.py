@@ -31,7 +31,7 @@ def metadata_fields(meta: Mapping) -> dict:
         end_effectors=meta["end_effectors"], layout=ParameterLayout(tuple(meta["parameters"]), meta["defaults"]),
         signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
         driven=meta.get("driven", ()), floating_base=meta.get("floating_base", False),
-        standard_names=meta.get("standard_names", ()),
+        standard_names=meta.get("standard_names", ()), coriolis=meta.get("coriolis", "christoffel"),
     )
 
 
@@ -59,6 +59,8 @@ class QuantitySet:
             standard parameters (:func:`jaxskid.model._standard.body_standard_map`), called on the first check
             of parameter values; None: masses and inertias are not checked at call time.
         standard_names: the names of the regressor's columns (:func:`jaxskid.standard_parameter_names`).
+        coriolis: the factorisation of ``coriolis_matrix`` (:class:`jaxskid.Options`): ``"christoffel"`` or
+            ``"skidy"``.
         checks: whether top-level calls check their inputs (:mod:`jaxskid.runtime._checks`): NaN or inf in
             a state or a parameter, parameter values that are not numbers, masses and inertias no rigid body
             has. Inside a caller's ``jit``, ``grad`` or ``vmap`` nothing is checked.
@@ -82,6 +84,7 @@ class QuantitySet:
         inertia: Callable[[], tuple] | None = None,
         checks: bool = True,
         standard_names: Sequence[str] = (),
+        coriolis: str = "christoffel",
     ):
         self.robot_name: str = robot_name
         self.driven: tuple[str, ...] = tuple(driven)
@@ -103,6 +106,8 @@ class QuantitySet:
         self.standard_names: tuple[str, ...] = tuple(standard_names)
         """The standard parameters' names, the regressor's columns (``{link}_m``, ..., then the drives'); empty
         for a module generated before they were recorded."""
+        self.coriolis: str = coriolis
+        """The factorisation of ``coriolis_matrix``: ``"christoffel"`` (``dM/dt - 2C`` skew) or ``"skidy"``."""
         self.checks: bool = bool(checks)
         """Whether top-level calls check their inputs (see the ``checks`` argument)."""
         self._inertia_source = inertia

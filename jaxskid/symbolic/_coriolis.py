@@ -1,11 +1,18 @@
-"""The Coriolis matrix C(q, qd) of the Christoffel symbols of the first kind, on the tape.
+"""The Coriolis matrix C(q, qd), on the tape, in one of two factorisations (``Options.coriolis``).
 
-``C = J^T (M Jd + B(V) J)`` with the body Jacobian J (Müller & Kumar 2021, sec. 2.2) and the per-body
-Christoffel-consistent factorisation ``B(V)`` of Echeandia & Wensing (2021), in body-fixed form:
-``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))``, so that ``B(V) V = V x* (M V)`` and
-``B(V) - M ad(V)`` is skew-symmetric. Then ``C qd`` are the Coriolis/centrifugal forces, ``dM/dt - 2C``
-is skew-symmetric and ``C(q, x) y = C(q, y) x``, as for Pinocchio's ``computeCoriolisMatrix``. Column k
-is assembled by a Newton-Euler backward pass over the bodies' wrenches ``M_i Jd_{i,k} + B(V_i) J_{i,k}``.
+``C = J^T (M Jd + B(V) J)`` with the body Jacobian J (Müller & Kumar 2021, sec. 2.2) and a per-body
+factorisation ``B(V)`` of the gyroscopic wrench, ``B(V) V = V x* (M V)``:
+
+* ``"christoffel"`` (default): the Christoffel-consistent ``B(V)`` of Echeandia & Wensing (2021), in
+  body-fixed form, ``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))``, so that ``B(V) - M ad(V)`` is
+  skew-symmetric. Then ``dM/dt - 2C`` is skew-symmetric and ``C(q, x) y = C(q, y) x``, as for Pinocchio's
+  ``computeCoriolisMatrix``.
+* ``"skidy"``: ``B(V) X = V x* (M X) = -ad(V)^T M X``, Müller & Kumar's (2021, eq. 9) closed form
+  ``C = -J^T (M A a + b^T M) J`` with ``a = diag(ad(X_i) qd_i)``, ``b = diag(ad(V_i))`` and ``-A a J = Jd``,
+  as Skidy computes it (``closed_form_inv_dyn_body_fixed``). Its ``C qd`` is the same, its C is not.
+
+Column k is assembled by a Newton-Euler backward pass over the bodies' wrenches ``M_i Jd_{i,k} +
+B(V_i) J_{i,k}``.
 """
 
 from __future__ import annotations
@@ -30,13 +37,22 @@ def christoffel_gyro(d: Derivation, m: Sequence[Sequence], v: Sequence, h: Seque
     return t.vec([e / 2 for e in sa.add(t1, t2, t3)])
 
 
+def skidy_gyro(d: Derivation, m: Sequence[Sequence], v: Sequence, x: Sequence) -> Vec:
+    """``B(V) X = V x* (M X)``, the ``-b^T M`` term of Müller & Kumar's closed form."""
+    return sa.coad_apply(v, d.tape.vec(sa.inertia_apply(m, x)))
+
+
 def coriolis_wrench(d: Derivation, i: int, k: int) -> Vec:
-    """Body i's wrench for column k: ``M_i Jd_{i,k} + B(V_i) J_{i,k}`` (k must support i)."""
+    """Body i's wrench for column k: ``M_i Jd_{i,k} + B(V_i) J_{i,k}`` (k must support i), with the ``B`` of
+    ``d.coriolis``."""
     m = inertia(d, i)
     jdk = jacobian_dot_columns(d, i)[k]
     v = twist(d, i)
+    x = jacobian_columns(d, i)[k]
+    if d.coriolis == "skidy":
+        return sa.add(sa.inertia_apply(m, jdk), skidy_gyro(d, m, v, x))
     h = d.tape.vec(sa.inertia_apply(m, v))
-    return sa.add(sa.inertia_apply(m, jdk), christoffel_gyro(d, m, v, h, jacobian_columns(d, i)[k]))
+    return sa.add(sa.inertia_apply(m, jdk), christoffel_gyro(d, m, v, h, x))
 
 
 def coriolis_matrix(d: Derivation) -> sp.Matrix:

@@ -141,13 +141,16 @@ class Derivation:
 
     ``friction_smoothing`` is ``0`` (Coulomb friction as ``sign(qd)``) or ``eps > 0`` (``tanh(qd / eps)``).
     ``trig`` is ``"symbols"`` (sin and cos of each ``q_i`` named once on the tape) or ``"inline"`` (left
-    in every expression). The mimic joints' states are the first assignments of the tape (module docstring).
+    in every expression). ``coriolis`` is the factorisation of the Coriolis matrix, ``"christoffel"`` or
+    ``"skidy"`` (:mod:`._coriolis`). The mimic joints' states are the first assignments of the tape (module
+    docstring).
     """
 
     robot: Robot
     inputs: Inputs
     trig: str = "symbols"
     friction_smoothing: float = 0.0
+    coriolis: str = "christoffel"
     tape: Tape = field(default_factory=Tape)
     memo: dict = field(default_factory=dict, repr=False)
 

@@ -129,13 +129,16 @@ def coriolis_matrix_derivative(d: Derivation, k: int) -> sp.Matrix:
 
 @memoized
 def coriolis_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
-    """``d^r/dt^r (M J'_{i,c} + B(V_i) J_{i,c})``, ``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))``.
+    """``d^r/dt^r (M J'_{i,c} + B(V_i) J_{i,c})``, ``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))``
+    (``d.coriolis == "christoffel"``) or ``B(V) X = V x* (M X)`` (``"skidy"``).
 
     B is bilinear, so the Leibniz sum ``sum_s C(r, s) B(V^(s), J^(r-s))`` applies M once to the sum of
     the brackets, and the products ``M J^(j)`` and ``M V^(s)`` are shared between orders.
     """
     if r == 0:
         return coriolis_wrench(d, i, c)
+    if d.coriolis == "skidy":
+        return _skidy_wrench_derivative(d, i, c, r)
     m = inertia(d, i)
     brackets, duals = [], []
     for s in range(r + 1):
@@ -149,4 +152,18 @@ def coriolis_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
     half = sp.Rational(1, 2)
     inner = sa.add(jacobian_column_derivative(d, i, c, r + 1), sa.scale(sa.add(zero6(), *brackets), half))
     out = sa.add(sa.inertia_apply(m, d.tape.vec(inner)), sa.scale(sa.add(zero6(), *duals), half))
+    return d.tape.vec(out)
+
+
+def _skidy_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
+    """``d^r/dt^r (M J'_{i,c} + V_i x* (M J_{i,c})) = M J^(r+1) + sum_s C(r, s) V^(s) x* (M J^(r-s))``: the
+    r-th derivative of the body wrench of Müller & Kumar's (2021) ``C = -J^T (M A a + b^T M) J``."""
+    m = inertia(d, i)
+    out = sa.inertia_apply(m, jacobian_column_derivative(d, i, c, r + 1))
+    for s in range(r + 1):
+        x = jacobian_column_derivative(d, i, c, r - s)
+        if is_zero(x):
+            continue
+        mx = d.tape.vec(sa.inertia_apply(m, x))
+        out = sa.add(out, sa.scale(sa.coad_apply(twist_derivative(d, i, s), mx), comb(r, s)))
     return d.tape.vec(out)
