@@ -5,8 +5,7 @@ is ``jax.vmap``'s job. It carries the fused helpers of :mod:`jaxskid._kernels` a
 runtime needs to call it (:meth:`jaxskid.codegen.Layout.metadata`).
 
 Output form. How the result array is assembled decides how fast XLA on CPU runs the function in a batch.
-``python benchmarks/output_forms.py`` measures the forms on the Panda (float64, batch 65536, per state),
-from slowest to fastest:
+``python benchmarks/output_forms.py`` measures the forms on the Panda (float64, batch 65536, per state):
 
 - ``jnp.stack`` / ``jnp.array([...])`` of the entries: XLA computes each distinct entry in a kernel of
   its own that redoes the shared work;
