@@ -2,7 +2,7 @@
 
     python benchmarks/raw_loop.py [--robots panda,solo12] [--batch 256] [--steps 200] [--repeats 15] [--markdown PATH]
 
-The README's advice for your own loops is ``jax.vmap(dyn.raw(name))``. Here a user's RK4 rollout, written
+The documentation's advice for your own loops (docs/quantities.md) is ``jax.vmap(dyn.raw(name))``. Here a user's RK4 rollout, written
 by hand as ``lax.scan`` over ``jax.vmap`` of the accelerations, runs four ways: with
 ``dyn.raw("forward_dynamics")`` or with the public ``dyn.forward_dynamics`` (which maps a batch itself),
 each under ``jaxskid.jit`` and under a plain ``jax.jit``. Robots from example-robot-data: the Panda (7 DOF,
@@ -37,7 +37,7 @@ ROBOTS = {
 
 
 def users_rollout(accel, dt: float):
-    """A hand-written RK4 rollout over a batch, as the README suggests writing one."""
+    """A hand-written RK4 rollout over a batch, as the documentation suggests writing one."""
 
     def rollout(q, qd, u, p):
         def deriv(x, tau):
