@@ -2,8 +2,8 @@
 
     python benchmarks/raw_loop.py [--robots panda,solo12] [--batch 256] [--steps 200] [--repeats 15] [--markdown PATH]
 
-The documentation's advice for your own loops (docs/quantities.md) is ``jax.vmap(dyn.raw(name))``. Here a user's RK4 rollout, written
-by hand as ``lax.scan`` over ``jax.vmap`` of the accelerations, runs four ways: with
+The documentation's advice for your own loops (docs/quantities.md) is ``jax.vmap(dyn.raw(name))``. Here a
+user's RK4 rollout, written by hand as ``lax.scan`` over ``jax.vmap`` of the accelerations, runs four ways: with
 ``dyn.raw("forward_dynamics")`` or with the public ``dyn.forward_dynamics`` (which maps a batch itself),
 each under ``jaxskid.jit`` and under a plain ``jax.jit``. Robots from example-robot-data: the Panda (7 DOF,
 fingers locked) and solo12 (12 DOF), float64, RK4 at 1 ms with random torques. Printed: compile time and
