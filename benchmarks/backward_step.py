@@ -1,6 +1,6 @@
 """The backward step of forward dynamics, the kernel of every rollout gradient, against Pinocchio.
 
-    python benchmarks/backward_step.py [--robots panda,solo12,g1] [--batch 4096] [--repeats 11]
+    python benchmarks/backward_step.py [--robots panda,solo12,g1] [--batch 4096] [--repeats 11] [--markdown PATH]
 
 For each robot (fixed base, from example-robot-data, every inertial parameter symbolic) it times, per state
 on a batch (float64):
@@ -31,9 +31,10 @@ import jaxskid  # noqa: E402
 from jaxskid.runtime._forward import accelerations  # noqa: E402
 from core import median_time  # noqa: E402  (benchmarks/core.py, beside this script)
 from scaling import ERD, ROBOTS, _pinocchio_model  # noqa: E402
+import doc_tables  # noqa: E402  (benchmarks/doc_tables.py)
 
 
-def measure(name: str, batch: int, repeats: int) -> None:
+def measure(name: str, batch: int, repeats: int) -> str:
     path, lock = ROBOTS[name]
     robot = jaxskid.load(ERD / path, lock=lock)
     dyn = jaxskid.lower(robot, ["forward_dynamics"])
@@ -63,8 +64,8 @@ def measure(name: str, batch: int, repeats: int) -> None:
 
     t_pin = median_time(peer, repeats) / len(rows)
     backward = t_both - t_fwd
-    print(f"| {name} | {n} | {t_fwd * 1e6:.3f} µs | {t_both * 1e6:.3f} µs | {backward * 1e6:.3f} µs | "
-          f"{t_pin * 1e6:.2f} µs | {t_pin / backward:.1f}x |")
+    return (f"| {name} | {n} | {t_fwd * 1e6:.3f} µs | {t_both * 1e6:.3f} µs | {backward * 1e6:.3f} µs | "
+            f"{t_pin * 1e6:.2f} µs | {t_pin / backward:.1f}x |")
 
 
 def main() -> None:
@@ -72,12 +73,16 @@ def main() -> None:
     parser.add_argument("--robots", default="panda,solo12,g1")
     parser.add_argument("--batch", type=int, default=4096)
     parser.add_argument("--repeats", type=int, default=11)
+    doc_tables.add_option(parser)
     args = parser.parse_args()
     print(f"jax {jax.__version__}, Pinocchio {pin.__version__}, float64, batch {args.batch}")
-    print("| robot | DOF | forward | forward + backward | backward | Pinocchio computeABADerivatives | ratio |")
-    print("|---|---|---|---|---|---|---|")
+    out = doc_tables.Lines()
+    out("| robot | DOF | forward | forward + backward | backward | Pinocchio computeABADerivatives | ratio |")
+    out("|---|---|---|---|---|---|---|")
     for name in args.robots.split(","):
-        measure(name, args.batch, args.repeats)
+        out(measure(name, args.batch, args.repeats))
+    doc_tables.write(args.markdown, out, f"Per state at batch {args.batch}, float64, medians of {args.repeats}; "
+                     "Pinocchio per call from Python. The ratio is Pinocchio's time over the backward step alone.")
 
 
 if __name__ == "__main__":

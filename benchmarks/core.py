@@ -1,6 +1,6 @@
 """Derive + lower + compile time, and batched throughput of tau, M, Q_grav and C qd against Pinocchio.
 
-    python benchmarks/core.py [--robot panda] [--repeats 7]
+    python benchmarks/core.py [--robot panda] [--repeats 7] [--markdown PATH]
     python benchmarks/core.py --params-cost     # only: parameters as a dict against a vector (G1)
 
 Every figure is a median over repeats, measured in this run, through the public functions
@@ -29,6 +29,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
+import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
@@ -64,7 +65,7 @@ def alternating_medians(calls, repeats: int) -> list[float]:
     return [float(np.median(t)) for t in times]
 
 
-def params_cost(repeats: int) -> None:
+def params_cost(repeats: int, markdown=None) -> None:
     """``inverse_dynamics`` of the G1 per call, parameters as a dict against a vector."""
     robot = jaxskid.load(G1)
     dyn = jaxskid.lower(robot, ["inverse_dynamics"])
@@ -73,6 +74,7 @@ def params_cost(repeats: int) -> None:
           f"float64; median per call, dict and vector calls alternating")
     print(f"{'batch':>6s} {'vector us/call':>15s} {'dict us/call':>13s} {'dict / vector':>14s}")
     rng = np.random.default_rng(0)
+    rows = []
     for batch, count in ((1, max(repeats, 201)), (4096, max(repeats, 21))):
         q, qd, qdd = (jnp.asarray(rng.uniform(-1, 1, size=(batch, robot.n_dof))) for _ in range(3))
         if batch == 1:
@@ -81,6 +83,10 @@ def params_cost(repeats: int) -> None:
             [lambda: jax.block_until_ready(dyn.inverse_dynamics(q, qd, qdd, vector)),
              lambda: jax.block_until_ready(dyn.inverse_dynamics(q, qd, qdd, named))], count)
         print(f"{batch:6d} {t_vec * 1e6:15.1f} {t_dict * 1e6:13.1f} {t_dict / t_vec:14.2f}")
+        rows.append([batch, f"{t_vec * 1e6:.1f} µs", f"{t_dict * 1e6:.1f} µs", f"{t_dict / t_vec:.2f}"])
+    lines = doc_tables.table(["batch", "vector, per call", "dict, per call", "dict / vector"], rows)
+    doc_tables.write(markdown, lines, f"The G1 (29 DOF, {len(dyn.parameters)} parameters), `inverse_dynamics`, "
+                     "float64; medians per call, the dict and vector calls alternating.")
 
 
 def pinocchio_calls(model, q, qd, qdd, repeats):
@@ -110,9 +116,10 @@ def main(argv=None):
                     help="keep every inertial parameter symbolic (all) or substitute the URDF values (none)")
     ap.add_argument("--params-cost", action="store_true",
                     help="only time the G1's inverse_dynamics with its parameters as a dict against a vector")
+    doc_tables.add_option(ap)
     args = ap.parse_args(argv)
     if args.params_cost:
-        params_cost(args.repeats)
+        params_cost(args.repeats, args.markdown)
         return
     path, lock = ROBOTS[args.robot]
     batches = [int(b) for b in args.batches.split(",")]
@@ -152,6 +159,7 @@ def main(argv=None):
                                                  pin.neutral(pin.buildModelFromUrdf(str(path)))) if lock else
                            pin.buildModelFromUrdf(str(path)), q, qd, qdd, args.repeats)
     print(f"\n{'quantity':18s} {'batch':>6s} {'jaxskid ns/state':>17s} {'pinocchio ns/call':>18s} {'speed-up':>9s}")
+    rows = []
     for name in QUANTITIES:
         for b in batches:
             arrays = [jnp.asarray(s[:b]) for s in states[: ARGS[name]]]
@@ -160,12 +168,24 @@ def main(argv=None):
             f = getattr(dyn, name)
             t = median_time(lambda: jax.block_until_ready(f(*arrays, p)), args.repeats) / b
             print(f"{name:18s} {b:6d} {t * 1e9:17.1f} {peer[name] * 1e9:18.1f} {peer[name] / t:9.2f}")
+            rows.append([f"`{name}`", b, "float64", doc_tables.duration(t), doc_tables.duration(peer[name]),
+                         doc_tables.ratio(peer[name] / t)])
     b = big
     arrays32 = [jnp.asarray(s[:b], dtype=jnp.float32) for s in states[:3]]
     p32 = p.astype(jnp.float32)
     t = median_time(lambda: jax.block_until_ready(dyn.inverse_dynamics(*arrays32, p32)), args.repeats) / b
     print(f"{'inverse_dynamics':18s} {b:6d} {t * 1e9:17.1f} {peer['inverse_dynamics'] * 1e9:18.1f} "
           f"{peer['inverse_dynamics'] / t:9.2f}   (float32)")
+    peer_tau = peer["inverse_dynamics"]
+    rows.append(["`inverse_dynamics`", b, "float32", doc_tables.duration(t), doc_tables.duration(peer_tau),
+                 doc_tables.ratio(peer_tau / t)])
+    lines = doc_tables.table(["quantity", "batch", "dtype", "jaxskid per state", "Pinocchio per call", "ratio"], rows)
+    doc_tables.write(args.markdown, lines, f"{args.robot}: {n} DOF, {len(dyn.parameters)} symbolic parameters; "
+                     f"load {t_load:.2f} s, derive + print {t_derive:.2f} s (cached reload {t_cached:.3f} s), "
+                     f"compile of the {len(QUANTITIES)} quantities at batch {big} {t_compile:.2f} s. "
+                     f"Medians of {args.repeats}; "
+                     "Pinocchio per call from Python (`rnea`, `crba`, `computeGeneralizedGravity`, "
+                     "`nonLinearEffects`) on the same states.")
 
 
 if __name__ == "__main__":

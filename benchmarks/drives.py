@@ -1,6 +1,6 @@
 """The regressor with drives against the regressor without, and against Pinocchio, in one run.
 
-    python benchmarks/drives.py [--robots ur10,panda] [--batch 4096] [--repeats 9]
+    python benchmarks/drives.py [--robots ur10,panda] [--batch 4096] [--repeats 9] [--markdown PATH]
 
 For each robot (example-robot-data's UR10 and the Panda with its fingers locked) the regressor is lowered
 twice, without drives (10 columns per body) and with them (``load(..., drives=True)``: 4 more per joint,
@@ -24,6 +24,7 @@ import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
 from core import alternating_medians, median_time  # noqa: E402
+import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
@@ -37,10 +38,12 @@ def main() -> None:
     parser.add_argument("--robots", default="ur10,panda")
     parser.add_argument("--batch", type=int, default=4096)
     parser.add_argument("--repeats", type=int, default=9)
+    doc_tables.add_option(parser)
     args = parser.parse_args()
-    print("| robot | batch | without drives | with drives | with / without | native (without, with) "
+    out = doc_tables.Lines()
+    out("| robot | batch | without drives | with drives | with / without | native (without, with) "
           "| Pinocchio per call | with drives against Pinocchio |")
-    print("|---|---|---|---|---|---|---|---|")
+    out("|---|---|---|---|---|---|---|---|")
     for name in args.robots.split(","):
         path, lock = ROBOTS[name]
         plain = jaxskid.lower(jaxskid.load(path, lock=lock), ["regressor"])
@@ -65,9 +68,11 @@ def main() -> None:
         peer = median_time(pinocchio, args.repeats) / len(states)
         per_without, per_with = without / args.batch, with_ / args.batch
         native = (plain.native_target("regressor") is not None, driven.native_target("regressor") is not None)
-        print(f"| {name} ({n}) | {args.batch} | {per_without * 1e6:.3f} µs | {per_with * 1e6:.3f} µs "
+        out(f"| {name} ({n}) | {args.batch} | {per_without * 1e6:.3f} µs | {per_with * 1e6:.3f} µs "
               f"| {per_with / per_without:.2f}x | {native[0]}, {native[1]} | {peer * 1e6:.2f} µs "
-              f"| {peer / per_with:.1f}x |", flush=True)
+            f"| {peer / per_with:.1f}x |")
+    doc_tables.write(args.markdown, out, f"The regressor, float64, per state at batch {args.batch}, medians of "
+                     f"{args.repeats} alternated runs; Pinocchio's `computeJointTorqueRegressor` per call from Python.")
 
 
 if __name__ == "__main__":

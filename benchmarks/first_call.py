@@ -1,6 +1,6 @@
 """The first call in a new process: cold, and with jaxskid's persistent compilation cache.
 
-    python benchmarks/first_call.py [--robots z1,panda] [--steps 500] [--batch 0]
+    python benchmarks/first_call.py [--robots z1,panda] [--steps 500] [--batch 0] [--markdown PATH]
 
 jaxskid keeps generated modules and, through JAX's persistent compilation cache, XLA's compiled programs in
 ``jaxskid.cache_dir()`` (here a fresh temporary directory). For each robot (example-robot-data's Unitree z1
@@ -27,6 +27,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import doc_tables  # benchmarks/doc_tables.py, beside this script
 
 ROBOTS = {
     "z1": ("z1_description/urdf/z1.urdf", None),
@@ -120,25 +122,30 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--batch", type=int, default=0, help="rollouts per call (0: one, unbatched)")
     parser.add_argument("--stage", nargs=4, help=argparse.SUPPRESS)
+    doc_tables.add_option(parser)
     args = parser.parse_args()
     if args.stage:
         stage, robot, steps, batch = args.stage
         print(json.dumps(_stage(stage, robot, int(steps), int(batch))))
         return
-    print(f"{args.steps} RK4 steps, batch {args.batch or 1}; wall seconds of one call, each stage in a new process")
-    print("| robot | derive + lower (nothing cached) | rollout: cold, warm, ratio | gradient: cold, warm, ratio "
+    notes = (f"{args.steps} RK4 steps, batch {args.batch or 1}; wall seconds of one call, each stage in a new "
+             "process; warm: the compiled programs read from the persistent cache.")
+    print(notes)
+    out = doc_tables.Lines()
+    out("| robot | derive + lower (nothing cached) | rollout: cold, warm, ratio | gradient: cold, warm, ratio "
           "| Pinocchio aba rollout from Python |")
-    print("|---|---|---|---|---|")
+    out("|---|---|---|---|---|")
     for robot in args.robots.split(","):
         with tempfile.TemporaryDirectory() as cache:
             derive = _run("derive", robot, args.steps, args.batch, cache)
             cold = _run("cold", robot, args.steps, args.batch, cache)
             warm = _run("warm", robot, args.steps, args.batch, cache)
         pin_time = _pinocchio_rollout(robot, args.steps)
-        print(f"| {robot} | {derive['lower']:.1f} s "
+        out(f"| {robot} | {derive['lower']:.1f} s "
               f"| {cold['rollout']:.2f} s, {warm['rollout']:.2f} s, {cold['rollout'] / warm['rollout']:.1f}x "
               f"| {cold['gradient']:.2f} s, {warm['gradient']:.2f} s, {cold['gradient'] / warm['gradient']:.1f}x "
-              f"| {pin_time:.3f} s |", flush=True)
+            f"| {pin_time:.3f} s |")
+    doc_tables.write(args.markdown, out, notes)
 
 
 if __name__ == "__main__":

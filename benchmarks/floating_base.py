@@ -1,7 +1,7 @@
 """Floating-base quantities against Pinocchio in the same run: tau, M and forward dynamics of solo12 and the G1
 with a free-flyer root, and the constrained forward dynamics of solo12 standing on four point contacts.
 
-    python benchmarks/floating_base.py [--batch 4096] [--repeats 7]
+    python benchmarks/floating_base.py [--robots solo12,g1] [--batch 4096] [--repeats 7] [--markdown PATH]
 
 jaxskid: the median time per state of the public function on a batch (float64; ``q`` of shape (batch, nq)).
 Forward dynamics is solved from M and tau (no closed form lowered). Pinocchio: the median time per call from
@@ -26,6 +26,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
+import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
 
 ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots"))
@@ -60,8 +61,12 @@ def per_call(fn, args, repeats: int) -> float:
     return median_time(run, repeats) / len(rows)
 
 
-def row(name: str, ours: float, theirs: float) -> None:
+ROWS: list[list[str]] = []  # the table's rows so far, for --markdown
+
+
+def row(name: str, ours: float, theirs: float, peer: str) -> None:
     print(f"{name:<38} {ours * 1e6:>10.3f} {theirs * 1e6:>12.3f} {theirs / ours:>8.1f}x")
+    ROWS.append([name, f"{ours * 1e6:.2f} µs", f"{theirs * 1e6:.2f} µs (`{peer}`)", f"{theirs / ours:.1f}x"])
 
 
 def free_flyer(name: str, batch: int, repeats: int, rng) -> None:
@@ -76,13 +81,13 @@ def free_flyer(name: str, batch: int, repeats: int, rng) -> None:
     dyn.mass_matrix(q).block_until_ready()
     print(f"{name} floating base (nv {robot.nv}): derive + lower + compile {time.perf_counter() - start:.1f} s")
     row(f"{name} tau", median_time(lambda: dyn.inverse_dynamics(q, v, a).block_until_ready(), repeats) / batch,
-        per_call(lambda *x: pin.rnea(model, data, *x), (q, v, a), repeats))
+        per_call(lambda *x: pin.rnea(model, data, *x), (q, v, a), repeats), "rnea")
     row(f"{name} M", median_time(lambda: dyn.mass_matrix(q).block_until_ready(), repeats) / batch,
-        per_call(lambda x: pin.crba(model, data, x), (q,), repeats))
+        per_call(lambda x: pin.crba(model, data, x), (q,), repeats), "crba")
     dyn.forward_dynamics(q, v, a).block_until_ready()  # M and tau solved on M's sparsity (runtime/_sparse.py)
     row(f"{name} forward dynamics", median_time(lambda: dyn.forward_dynamics(q, v, a).block_until_ready(),
                                                 repeats) / batch,
-        per_call(lambda *x: pin.aba(model, data, *x), (q, v, a), repeats))
+        per_call(lambda *x: pin.aba(model, data, *x), (q, v, a), repeats), "aba")
 
 
 def contacts(batch: int, repeats: int, rng) -> None:
@@ -109,20 +114,28 @@ def contacts(batch: int, repeats: int, rng) -> None:
     pin.initConstraintDynamics(model, data, models, datas)
     row("solo12 constrained forward dynamics",
         median_time(lambda: dyn.constrained_forward_dynamics(q, v, tau)[0].block_until_ready(), repeats) / batch,
-        per_call(lambda *x: pin.constraintDynamics(model, data, *x, models, datas), (q, v, tau), repeats))
+        per_call(lambda *x: pin.constraintDynamics(model, data, *x, models, datas), (q, v, tau), repeats),
+        "constraintDynamics")
 
 
-def main(batch: int = 4096, repeats: int = 7) -> None:
+def main(batch: int = 4096, repeats: int = 7, robots=tuple(ROBOTS), markdown=None) -> None:
     rng = np.random.default_rng(0)
     print(f"{'quantity':<38} {'jaxskid us':>10} {'pinocchio us':>12} {'ratio':>9}   (batch {batch}, float64)")
-    for name in ROBOTS:
+    for name in robots:
         free_flyer(name, batch, repeats, rng)
-    contacts(batch, repeats, rng)
+    if "solo12" in robots:
+        contacts(batch, repeats, rng)
+    lines = doc_tables.table(["quantity", "jaxskid per state", "Pinocchio per call", "ratio"], ROWS)
+    doc_tables.write(markdown, lines, f"Floating bases (Pinocchio's `JointModelFreeFlyer` models), float64, batch "
+                     f"{batch}, medians of {repeats}, the generated modules cached; forward dynamics from M and tau "
+                     "(the sparse solve); Pinocchio per call from Python in the same run.")
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=4096)
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--robots", default=",".join(ROBOTS))
+    doc_tables.add_option(parser)
     args = parser.parse_args()
-    main(args.batch, args.repeats)
+    main(args.batch, args.repeats, args.robots.split(","), args.markdown)

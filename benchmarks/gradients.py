@@ -1,6 +1,6 @@
 """Gradients through rollouts: what a gradient costs against the loss, to run and to compile.
 
-    python benchmarks/gradients.py [--robots z1,panda] [--steps 500,2000] [--batch 64] [--repeats 5]
+    python benchmarks/gradients.py [--robots z1,panda] [--steps 500,2000] [--batch 64] [--repeats 5] [--markdown PATH]
     python benchmarks/gradients.py --scenes [ur5_pd_gravity,ur5_pdgravity,panda_computed_torque,solo12_contact,four_bar]
 
 For each robot (Unitree z1 and the Franka Panda with its fingers locked, from example-robot-data) and
@@ -42,6 +42,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import doc_tables  # benchmarks/doc_tables.py, beside this script
 
 ROBOTS = {
     "z1": ("z1_description/urdf/z1.urdf", None),
@@ -228,10 +230,11 @@ def _in_process(args: list[str], cache: str, flag: str = "--case") -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _scenes_table(names: list[str], batch: int, repeats: int) -> None:
-    print("| scene | DOF, params | steps | batch | loss | grad | ratio | grad first call, jaxskid.jit: cold, warm "
+def _scenes_table(names: list[str], batch: int, repeats: int, markdown) -> None:
+    out = doc_tables.Lines()
+    out("| scene | DOF, params | steps | batch | loss | grad | ratio | grad first call, jaxskid.jit: cold, warm "
           "| grad first call, jax.jit: cold, warm | memory loss / grad (MB) | check |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    out("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in names:
         case = [name, str(batch), str(repeats)]
         with tempfile.TemporaryDirectory() as cache:
@@ -239,12 +242,14 @@ def _scenes_table(names: list[str], batch: int, repeats: int) -> None:
         with tempfile.TemporaryDirectory() as cache:
             cold_jax, warm_jax = (_in_process([*case, "jax"], cache, "--scene-case") for _ in range(2))
         loss, grad = cold["loss_time"], cold["reverse_time"]
-        print(f"| {name} | {cold['n_dof']}, {cold['n_params']} | {cold['steps']} | {cold['batch']} "
+        out(f"| {name} | {cold['n_dof']}, {cold['n_params']} | {cold['steps']} | {cold['batch']} "
               f"| {1e3 * loss:.2f} ms | {1e3 * grad:.2f} ms | {grad / loss:.1f}x "
               f"| {cold['reverse_first_jaxskid']:.1f} s, {warm['reverse_first_jaxskid']:.1f} s "
               f"| {cold_jax['reverse_first_jax']:.1f} s, {warm_jax['reverse_first_jax']:.1f} s "
-              f"| {_mb(cold.get('loss_memory'))} / {_mb(cold.get('reverse_memory'))} | {cold['check']:.1e} |",
-              flush=True)
+            f"| {_mb(cold.get('loss_memory'))} / {_mb(cold.get('reverse_memory'))} | {cold['check']:.1e} |")
+    doc_tables.write(markdown, out, f"Closed-loop and constrained scenes, reverse mode, medians of {repeats}; first "
+                     "calls in fresh processes, cold (empty compilation cache) and warm; check: the gradient against "
+                     "a central difference along a random direction (relative difference).")
 
 
 def _mb(x) -> str:
@@ -261,22 +266,24 @@ def main() -> None:
                         help="closed-loop and constrained scenes instead of the open-loop robots")
     parser.add_argument("--case", nargs=5, help=argparse.SUPPRESS)
     parser.add_argument("--scene-case", nargs=4, help=argparse.SUPPRESS)
+    doc_tables.add_option(parser)
     args = parser.parse_args()
     if args.scene_case:
         name, batch, repeats, jit_name = args.scene_case
         print(json.dumps(_scene_case(name, int(batch), int(repeats), jit_name)))
         return
     if args.scenes:
-        _scenes_table(args.scenes.split(","), args.batch, args.repeats)
+        _scenes_table(args.scenes.split(","), args.batch, args.repeats, args.markdown)
         return
     if args.case:
         robot, steps, batch, repeats, jit_name = args.case
         print(json.dumps(_case(robot, int(steps), int(batch), int(repeats), jit_name)))
         return
-    print("| robot | steps | batch | loss | reverse grad | ratio | forward grad (jacfwd) | ratio "
+    out = doc_tables.Lines()
+    out("| robot | steps | batch | loss | reverse grad | ratio | forward grad (jacfwd) | ratio "
           "| first call loss / grad, jaxskid.jit: cold, warm | grad first call, jax.jit: cold, warm "
           "| memory loss / grad (MB) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    out("|---|---|---|---|---|---|---|---|---|---|---|")
     for robot in args.robots.split(","):
         for steps in map(int, args.steps.split(",")):
             for batch in (0, args.batch):
@@ -286,16 +293,18 @@ def main() -> None:
                 with tempfile.TemporaryDirectory() as cache:
                     cold_jax, warm_jax = _in_process([*case, "jax"], cache), _in_process([*case, "jax"], cache)
                 loss, rev, fwd = cold["loss_time"], cold["reverse_time"], cold["forward_time"]
-                print(
+                out(
                     f"| {robot} ({cold['n_dof']}, {cold['n_params']} params) | {steps} | {batch or 1} "
                     f"| {1e3 * loss:.2f} ms | {1e3 * rev:.2f} ms | {rev / loss:.1f}x | {1e3 * fwd:.1f} ms "
                     f"| {fwd / loss:.0f}x "
                     f"| {cold['loss_first_jaxskid']:.1f} / {cold['reverse_first_jaxskid']:.1f} s, "
                     f"{warm['loss_first_jaxskid']:.1f} / {warm['reverse_first_jaxskid']:.1f} s "
                     f"| {cold_jax['reverse_first_jax']:.1f} s, {warm_jax['reverse_first_jax']:.1f} s "
-                    f"| {_mb(cold.get('loss_memory'))} / {_mb(cold.get('reverse_memory'))} |",
-                    flush=True,
+                    f"| {_mb(cold.get('loss_memory'))} / {_mb(cold.get('reverse_memory'))} |"
                 )
+    doc_tables.write(args.markdown, out, f"RK4 at 1 ms, open-loop torques, gradients with respect to all inertial "
+                     f"parameters; medians of {args.repeats}; first calls in fresh processes, cold (empty compilation "
+                     "cache) and warm, each jit in its own processes and cache.")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """What writing a batched result costs on this machine, before any arithmetic: the floor under a large
 matrix-valued quantity.
 
-    python benchmarks/memory_floor.py [--entries 8410] [--batch 4096] [--threads 2] [--repeats 10]
+    python benchmarks/memory_floor.py [--entries 8410] [--batch 4096] [--threads 2] [--repeats 10] [--markdown PATH]
 
 A batch of the G1's regressors (29 x 290 = 8,410 doubles per state) is 275 MB. XLA gives each call's result
 fresh memory, which the operating system maps and zeroes page by page on first write; Pinocchio's
@@ -24,6 +24,8 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+
+import doc_tables  # benchmarks/doc_tables.py, beside this script
 
 SOURCE = r"""
 #define _GNU_SOURCE
@@ -111,6 +113,7 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=4096)
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=10)
+    doc_tables.add_option(parser)
     args = parser.parse_args()
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
@@ -122,14 +125,17 @@ def main() -> None:
         subprocess.run([cc, "-O2", "-pthread", "-o", str(exe), str(Path(tmp) / "floor.c")], check=True)
         print(f"{args.batch} states x {args.entries} doubles = {nbytes / 1e6:.0f} MB a batch, "
               f"{args.threads} thread(s), medians of {args.repeats}")
-        print("| memory | write | per state |")
-        print("|---|---|---|")
+        rows = []
         for fresh, huge, stream, label in [(1, 0, 0, "fresh, 4 KB pages"), (1, 1, 0, "fresh, 2 MB pages"),
                                            (1, 1, 1, "fresh, 2 MB pages"), (0, 0, 0, "reused")]:
             out = subprocess.run([str(exe), str(nbytes), str(args.threads), str(args.repeats), str(fresh),
                                   str(huge), str(stream)], check=True, capture_output=True, text=True).stdout
             per_state = float(out) / args.batch * 1e6
-            print(f"| {label} | {'streaming stores' if stream else 'memset'} | {per_state:.2f} µs |")
+            rows.append([label, "streaming stores" if stream else "memset", f"{per_state:.2f} µs"])
+    lines = doc_tables.table(["memory", "write", "per state"], rows)
+    print("\n".join(lines))
+    doc_tables.write(args.markdown, lines, f"{args.batch} states of {args.entries} doubles ({nbytes / 1e6:.0f} MB a "
+                     f"batch), {args.threads} thread(s), medians of {args.repeats}.")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """How the generated function assembles its result, and how it computes sine and cosine, against speed.
 
-    python benchmarks/output_forms.py [--quantity mass_matrix] [--batch 65536] [--repeats 15]
+    python benchmarks/output_forms.py [--quantity mass_matrix] [--batch 65536] [--repeats 15] [--markdown PATH]
 
 The same derived program (Panda, 7 DOF, fingers locked, 70 symbolic inertial parameters, float64) is
 printed with each output form and each sine/cosine, compiled the way :class:`jaxskid.Dynamics` compiles
@@ -40,6 +40,7 @@ from jaxskid.runtime._dynamics import compiler_options  # noqa: E402
 from jaxskid._kernels import SOURCE as HELPERS  # noqa: E402
 from jaxskid.codegen import Layout  # noqa: E402
 from jaxskid.codegen._jax import JaxPrinter, function_source, jax_names  # noqa: E402
+import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
 
 ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
@@ -83,6 +84,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--robot", default="panda", choices=("panda", "quadruped"),
                     help="the Panda URDF (fingers locked) or robots/quadruped_12dof.yaml (a 12-DOF tree)")
+    doc_tables.add_option(ap)
     args = ap.parse_args(argv)
     robot = jaxskid.load(URDF, lock=LOCK) if args.robot == "panda" else jaxskid.load(ROOT / "robots/quadruped_12dof.yaml")
     eqs = jaxskid.derive(robot, [args.quantity])
@@ -144,9 +146,18 @@ def main(argv=None):
           f"jax {jax.__version__}; Pinocchio {peer_name} "
           f"{peer_t * 1e9:.0f} ns per call")
     print(f"{'form / trig':36s} {'ns/state':>9s} {'x Pinocchio':>12s} {'kernels':>8s} {'compile s':>10s} {'max rel diff':>13s}")
+    rows = []
     for label, (_f, t_compile, kernels, err) in fns.items():
         t = float(np.median(times[label]))
         print(f"{label:36s} {t * 1e9:9.1f} {peer_t / t:12.1f} {kernels:8d} {t_compile:10.2f} {err:13.1e}")
+        rows.append([label, doc_tables.duration(t), doc_tables.ratio(peer_t / t), kernels, f"{t_compile:.2f} s",
+                     f"{err:.1e}"])
+    lines = doc_tables.table(["form / trig", "per state", "against Pinocchio", "fused kernels", "compile",
+                              "max relative difference"], rows)
+    doc_tables.write(args.markdown, lines, f"`{args.quantity}` of the {args.robot} ({robot.n_dof} DOF, "
+                     f"{len(eqs.parameters)} symbolic parameters), float64, batch {args.batch}, medians of "
+                     f"{args.repeats} interleaved repeats; Pinocchio's `{peer_name}` {peer_t * 1e9:.0f} ns per call "
+                     "from Python.")
 
 
 if __name__ == "__main__":

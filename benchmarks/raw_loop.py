@@ -1,9 +1,9 @@
 """``dyn.raw`` in a hand-written loop against the public functions and against Pinocchio.
 
-    python benchmarks/raw_loop.py [--robots panda,solo12] [--batch 256] [--steps 200] [--repeats 15]
+    python benchmarks/raw_loop.py [--robots panda,solo12] [--batch 256] [--steps 200] [--repeats 15] [--markdown PATH]
 
-The README's advice for your own loops is ``jax.vmap(dyn.raw(name))``. Here a user's RK4 rollout, written
-by hand as ``lax.scan`` over ``jax.vmap`` of the accelerations, runs four ways: with
+The documentation's advice for your own loops (docs/quantities.md) is ``jax.vmap(dyn.raw(name))``. Here a
+user's RK4 rollout, written by hand as ``lax.scan`` over ``jax.vmap`` of the accelerations, runs four ways: with
 ``dyn.raw("forward_dynamics")`` or with the public ``dyn.forward_dynamics`` (which maps a batch itself),
 each under ``jaxskid.jit`` and under a plain ``jax.jit``. Robots from example-robot-data: the Panda (7 DOF,
 fingers locked) and solo12 (12 DOF), float64, RK4 at 1 ms with random torques. Printed: compile time and
@@ -26,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 import jaxskid
+import doc_tables  # benchmarks/doc_tables.py, beside this script
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
@@ -36,7 +37,7 @@ ROBOTS = {
 
 
 def users_rollout(accel, dt: float):
-    """A hand-written RK4 rollout over a batch, as the README suggests writing one."""
+    """A hand-written RK4 rollout over a batch, as the documentation suggests writing one."""
 
     def rollout(q, qd, u, p):
         def deriv(x, tau):
@@ -75,10 +76,15 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=256)
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=15)
+    doc_tables.add_option(ap)
     args = ap.parse_args()
-    print(f"jax {jax.__version__}; batch {args.batch}, {args.steps} RK4 steps; medians of {args.repeats} interleaved repeats")
-    print("| robot | variant | compile | per evaluation | Pinocchio aba per call | ratio |")
-    print("|---|---|---|---|---|---|")
+    notes = (f"Batch {args.batch}, {args.steps} RK4 steps at 1 ms, float64; time per evaluation of the accelerations "
+             f"(4 per step and rollout), medians of {args.repeats} interleaved repeats; Pinocchio's `aba` per call "
+             "from Python on the same kind of states.")
+    print(notes)
+    out = doc_tables.Lines()
+    out("| robot | variant | compile | per evaluation | Pinocchio aba per call | ratio |")
+    out("|---|---|---|---|---|---|")
     for name in args.robots.split(","):
         path, lock = ROBOTS[name]
         dyn = jaxskid.lower(jaxskid.load(ERD / path, lock=lock), quantities=["forward_dynamics"])
@@ -110,8 +116,9 @@ def main() -> None:
         pin_call = pinocchio_aba(ERD / path, lock, *states)
         for label in calls:
             per = float(np.median(times[label]))
-            print(f"| {name} ({n}) | {label} | {compile_s[label]:.1f} s | {per * 1e6:.3f} us "
-                  f"| {pin_call * 1e6:.2f} us | {pin_call / per:.0f}x |", flush=True)
+            out(f"| {name} ({n}) | `{label}` | {compile_s[label]:.1f} s | {per * 1e6:.3f} µs "
+                f"| {pin_call * 1e6:.2f} µs | {pin_call / per:.0f}x |")
+    doc_tables.write(args.markdown, out, notes)
 
 
 if __name__ == "__main__":

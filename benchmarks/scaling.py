@@ -2,7 +2,7 @@
 
     python benchmarks/scaling.py [--robots ur5,panda,solo12,g1,g1_hands] [--batch 4096] [--repeats 7]
                                  [--quantities ...] [--plot benchmarks/out/scaling.png] [--no-floating]
-                                 [--trig auto|fused]
+                                 [--trig auto|fused] [--markdown PATH]
 
 Robots (fixed base, from example-robot-data): UR5 (6 DOF), Panda (7, fingers locked), solo12 (12), the
 Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. For each robot and quantity:
@@ -45,6 +45,7 @@ import pinocchio as pin  # noqa: E402
 import jaxskid  # noqa: E402
 from core import median_time as _median  # noqa: E402  (benchmarks/core.py, beside this script)
 import floating_base  # noqa: E402  (beside this script too)
+import doc_tables  # noqa: E402  (beside this script too)
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
@@ -97,7 +98,7 @@ def _pinocchio_time(fn, states: np.ndarray, repeats: int) -> float:
     return _median(loop, repeats) / count
 
 
-def measure(robot_name: str, quantities, batch: int, repeats: int) -> list[dict]:
+def measure(robot_name: str, quantities, batch: int, repeats: int, out=print) -> list[dict]:
     """The rows of one robot: per quantity, cold time, jaxskid and Pinocchio per state."""
     path, lock = ROBOTS[robot_name]
     robot = jaxskid.load(ERD / path, lock=lock)
@@ -126,7 +127,7 @@ def measure(robot_name: str, quantities, batch: int, repeats: int) -> list[dict]
             mass_time = ours
         rows.append({"robot": robot_name, "n_dof": n, "quantity": name, "cold": cold, "jaxskid": ours,
                      "reused": reused, "pinocchio": theirs, "mass_matrix": mass_time})
-        _print_row(rows[-1])
+        out(_row_line(rows[-1]))
     return rows
 
 
@@ -140,7 +141,7 @@ def _reused_time(fn, args, repeats: int) -> float:
     return _median(call, repeats)
 
 
-def _print_row(row: dict) -> None:
+def _row_line(row: dict) -> str:
     theirs, reused = row["pinocchio"], row["reused"]
     if theirs is not None:
         peer = f"{theirs * 1e6:.2f} µs | {theirs / row['jaxskid']:.1f}x"
@@ -150,8 +151,8 @@ def _print_row(row: dict) -> None:
         into = f"{reused * 1e6:.2f} µs" if reused else "-"
     else:
         peer, into = "- | -", "-"
-    print(f"| {row['robot']} | {row['n_dof']} | {row['quantity']} | {row['cold']:.1f} s "
-          f"| {row['jaxskid'] * 1e6:.2f} µs | {into} | {peer} |", flush=True)
+    return (f"| {row['robot']} | {row['n_dof']} | {row['quantity']} | {row['cold']:.1f} s "
+            f"| {row['jaxskid'] * 1e6:.2f} µs | {into} | {peer} |")
 
 
 def plot(rows: list[dict], out: Path) -> None:
@@ -220,6 +221,7 @@ def main() -> None:
     parser.add_argument("--floating", action=argparse.BooleanOptionalAction, default=True,
                         help="then the floating-base rows of benchmarks/floating_base.py: tau and M of solo12 and "
                              "the G1 on a free-flyer, and solo12's constrained forward dynamics on four contacts")
+    doc_tables.add_option(parser)
     args = parser.parse_args()
     empty_compilation_cache()
     quantities = args.quantities.split(",")
@@ -229,12 +231,18 @@ def main() -> None:
         parser.error(f"--quantities: choose from {', '.join(STATES)}")
     print(f"jax {jax.__version__} on {jax.default_backend()}, Pinocchio {pin.__version__}, float64, batch {args.batch}, "
           f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}, sine and cosine {args.trig}")
-    print("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | with out= (ratio) "
-          "| Pinocchio per call | ratio |")
-    print("|---|---|---|---|---|---|---|---|")
+    out = doc_tables.Lines()
+    out("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | with out= (ratio) "
+        "| Pinocchio per call | ratio |")
+    out("|---|---|---|---|---|---|---|---|")
     rows = []
     for robot in args.robots.split(","):
-        rows += measure(robot, quantities, args.batch, args.repeats)
+        rows += measure(robot, quantities, args.batch, args.repeats, out)
+    native = os.environ.get("JAXSKID_NATIVE", "1")
+    doc_tables.write(args.markdown, out, f"Batch {args.batch}, float64, every inertial parameter symbolic, medians "
+                     f"of {args.repeats}; Pinocchio one call from Python in the same run; cold: derive, lower, "
+                     f"compile and first call with every cache empty; JAXSKID_NATIVE={native}, sine and cosine "
+                     f"{args.trig}.")
     if args.plot:
         plot(rows, args.plot)
         print(f"plot: {args.plot}")

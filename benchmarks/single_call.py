@@ -8,6 +8,7 @@ machine slows them alike; the figures are medians of per-call means. Ratios are 
 quantity (rnea, crba, computeGeneralizedGravity, computeCoriolisMatrix) over the candidate's: > 1 is faster.
 
     python benchmarks/single_call.py [--repeat 41] [--number 2000] [--robots hopping_leg,quadruped_12dof,panda]
+    python benchmarks/single_call.py --markdown docs/performance/single_call.md   # also the documentation's table
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import pinocchio as pin
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
 
 ERD = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots")
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,18 +74,24 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=41)
     ap.add_argument("--number", type=int, default=2000)
     ap.add_argument("--robots", default=",".join(ROBOTS))
+    doc_tables.add_option(ap)
     opts = ap.parse_args()
     os.environ.setdefault("JAXSKID_CACHE_DIR", tempfile.mkdtemp(prefix="jaxskid-bench-"))
     print(f"jaxskid {jaxskid.__version__}, jax {jax.__version__}, pinocchio {pin.__version__}")
-    summary = []
+    summary, rows = [], []
     for key in opts.robots.split(","):
-        summary += robot_calls(key, opts)
+        summary += robot_calls(key, opts, rows)
     print("fastest jaxskid path against Pinocchio (ratio > 1: faster than Pinocchio):")
     for line in summary:
         print("  " + line)
+    header = ["robot (DOF)", "quantity", *(f"C ({b})" for b in BACKENDS), "jitted JAX", "Pinocchio", "fastest / Pinocchio"]
+    doc_tables.write(opts.markdown, doc_tables.table(header, rows),
+                     f"One state per call from Python, float64; medians over {opts.repeat} rounds of the mean of "
+                     f"{opts.number} calls, every candidate interleaved. The ratio is Pinocchio's time over the fastest "
+                     "path's (> 1: faster than Pinocchio).")
 
 
-def robot_calls(key: str, opts) -> list[str]:
+def robot_calls(key: str, opts, rows: list) -> list[str]:
     robot, model, data = robot_and_model(key)
     n = robot.n_dof
     t0 = time.perf_counter()
@@ -128,6 +136,9 @@ def robot_calls(key: str, opts) -> list[str]:
             diff = f"{np.abs(outputs[path] - ref[name]).max():.1e}" if path in outputs else ""
             print(f"{name:<18} {path:<37} {t * 1e6:>8.2f} us {base / t:>12.2f}x {diff:>11}")
         best = min(calls, key=times.__getitem__)
+        rows.append([f"{key} ({n})", f"`{name}`", *(f"{times[p] * 1e6:.2f} µs" for p in calls),
+                     f"{times['jitted JAX'] * 1e6:.1f} µs", f"{base * 1e6:.2f} µs (`{pin_name}`)",
+                     f"{base / times[best]:.1f}x"])
         summary.append(f"{key} ({n} DOF) {name}: {best} {times[best] * 1e6:.2f} us, Pinocchio {pin_name} "
                        f"{base * 1e6:.2f} us: {base / times[best]:.2f}x")
         print()

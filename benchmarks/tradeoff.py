@@ -1,7 +1,7 @@
 """Speed against accuracy for every option a user can choose: the 3-link arm (3 DOF), Panda (7 DOF) and the
 12-DOF quadruped.
 
-    python benchmarks/tradeoff.py [--batch 16384] [--repeats 7] [--limit 45] [--out benchmarks/out]
+    python benchmarks/tradeoff.py [--batch 16384] [--repeats 7] [--limit 45] [--out benchmarks/out] [--markdown PATH]
     python benchmarks/tradeoff.py --settings "tape (default),route=lagrange" --no-rollouts --name routes
     python benchmarks/tradeoff.py --robots "" --no-rollouts --precision g1 --name precision_g1
 
@@ -48,6 +48,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+import doc_tables  # benchmarks/doc_tables.py, beside this script
 import numpy as np
 import tradeoff_rollouts
 
@@ -435,6 +436,7 @@ def main(argv=None):
     ap.add_argument("--name", default="tradeoff", help="stem of the table and plot written to --out")
     ap.add_argument("--precision", default="", help=f"comma-separated large robots ({', '.join(PRECISION_ROBOTS)}) "
                     "for the float32/float64 error of M and forward dynamics")
+    doc_tables.add_option(ap)
     args = ap.parse_args(argv)
     labels = [s.label for s in SETTINGS]
     chosen = labels if args.settings is None else args.settings.split(",")
@@ -493,6 +495,7 @@ def main(argv=None):
     print(text)
     (args.out / f"{args.name}.md").write_text(text)
     written = [args.out / f"{args.name}.md"]
+    doc_tables.write(args.markdown, [line for line in text.splitlines() if not line.startswith("# ")])
     if results:
         written.append(args.out / f"{args.name}.png")
         plot(results, rollout_results, written[-1])

@@ -1,6 +1,7 @@
 """Rollouts: error against work for every integrator a rollout can use (the rollout part of tradeoff.py).
 
     python benchmarks/tradeoff_rollouts.py [--robots panda,quadruped] [--repeats 3] [--out benchmarks/out]
+    python benchmarks/tradeoff_rollouts.py --markdown docs/performance/tradeoff_rollouts.md   # also the documentation's table
 
 Passive rollouts (tau = 0 as a policy) from rest at 64 states q0 ~ U(-1, 1) over 0.5 s with closed-form
 forward dynamics and the default parameters, the final state saved (``SaveAt(t1=True)``). Error: max
@@ -32,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import doc_tables  # benchmarks/doc_tables.py, beside this script
 
 ROOT = Path(__file__).resolve().parents[1]
 HORIZON = 0.5  # s
@@ -269,6 +271,7 @@ def main(argv=None):
     ap.add_argument("--robots", default="panda,quadruped")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
+    doc_tables.add_option(ap)
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     robots = {"panda": (Path(importlib.metadata.distribution("example-robot-data").locate_file(
@@ -287,6 +290,7 @@ def main(argv=None):
             f"{importlib.metadata.version('diffrax')}, {platform.machine()}, {os.cpu_count()} CPUs\n\n" + table(results))
     print(text)
     (args.out / "tradeoff_rollouts.md").write_text(text)
+    doc_tables.write(args.markdown, table(results).splitlines())
     import matplotlib
 
     matplotlib.use("Agg")

@@ -6,17 +6,16 @@ the text pasted into every generated JAX module, which therefore stays self-cont
 **Sine and cosine as plain multiply-adds that XLA fuses.** XLA on CPU treats ``sin`` and ``cos`` as
 expensive: it will not fuse them into a kernel that uses their value more than once per element, so
 every ``sin(q_i)`` of a mass matrix became a kernel of its own and its result a round trip through memory
-(``python benchmarks/output_forms.py``: Panda mass matrix, batch 65536, float64, 160 against 66 ns per
-state; tau 55 against 26 ns). The method is the classic one: Cody & Waite argument reduction
+(``python benchmarks/output_forms.py`` compares the two on the Panda's mass matrix). The method is the
+classic one: Cody & Waite argument reduction
 ``x = n pi/2 + r`` with ``pi/2`` split into pieces of 33 significant bits, so that ``n * piece`` is exact
 for ``|n| < 2**20`` (``|x| < 1.6e6`` rad), and the minimax polynomials of Cephes' ``sin.c`` on
 [-pi/4, pi/4]. Measured against mpmath (``tests/test_trig.py``): within about one ulp of 1.0 in float64
 for ``|x| <= 1e5``, 1.5e-7 in float32 for ``|x| <= 10``; beyond ``|x| ~ 1.6e6`` the reduction loses bits
 gradually; ``inf`` and ``nan`` give ``nan``. Derivatives are defined exactly (``d sin = cos dx``).
-This serves CPU programs only. On a GPU (an H100, jax 0.11.2, batch 4096, float64) the multiply-adds were
-the slower choice: the G1's mass matrix took 2.62 µs per state with them against 0.18 µs with XLA's own
-``sin`` and ``cos``, the Panda's 4.3 against 2.5 ns (batch 65536); there a program uses XLA's functions
-(``lax.platform_dependent``, resolved when the program is lowered for its platform).
+This serves CPU programs only. On a GPU (an H100) the multiply-adds were the slower choice, by far for
+the G1's mass matrix (``benchmarks/scaling.py --trig fused`` against the default); there a program uses
+XLA's functions (``lax.platform_dependent``, resolved when the program is lowered for its platform).
 
 **Reciprocals by Newton's iteration.** XLA will not fuse a division whose result has several users
 either; ``1/x`` is printed as ``_recip(x)``: ``r <- r (2 - x r)`` five times (four in float32) from a

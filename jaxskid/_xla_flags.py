@@ -26,9 +26,9 @@ def classic_emitters_switch() -> bool:
 
 def prefer_classic_emitters() -> bool:
     """Make XLA's classic CPU emitters the process's default, so that a plain ``jax.jit`` of jaxskid's
-    functions compiles as :func:`jaxskid.jit` does (a hand-written RK4 loop over the Panda's forward
-    dynamics, batch 256: 0.19 us per evaluation under ``jax.jit`` against 0.09 us under :func:`jaxskid.jit`
-    otherwise).
+    functions compiles as :func:`jaxskid.jit` does (otherwise a hand-written RK4 loop over the Panda's forward
+    dynamics runs slower under ``jax.jit`` than under :func:`jaxskid.jit`; ``benchmarks/raw_loop.py``
+    compares the two).
 
     Called when jaxskid is imported. It adds :data:`CLASSIC_EMITTERS_FLAG` to ``XLA_FLAGS`` only while
     JAX's backends have not started (XLA reads the variable once, when they do) and only if ``XLA_FLAGS``

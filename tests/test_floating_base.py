@@ -184,8 +184,10 @@ def test_lowered_functions_match_pinocchio(solo):
     check_against_pinocchio("solo12", ours, s, 0)
 
 
-@pytest.mark.parametrize("name", ["solo12", "go2"])
+@pytest.mark.parametrize("name", ["solo12", "go2", pytest.param("g1", marks=pytest.mark.slow)])
 def test_matches_pinocchio(name):
+    """Every quantity of ``PINOCCHIO`` (the derived programs, evaluated with NumPy) against Pinocchio at three
+    random states; for the G1 (29 joints, nv 35) the derivation is most of the test."""
     r = robot(name)
     eqs = jaxskid.derive(r, PINOCCHIO)
     s = random_states(r, 3, seed=1)

@@ -17,7 +17,7 @@ thousands. The damping is Levenberg's ``lambda I`` (scaled by the largest diagon
 steps have no component in the directions the data leave free. Measured on the Panda (43 base parameters)
 from the same start: Marquardt's ``lambda diag(J^T J)`` stalled at 200 times the least-squares error with a
 body on the boundary of the consistent set; ``scipy.optimize.least_squares`` (``"trf"``, bounded) took 100
-residual evaluations and 5 s and also ended with a body on the boundary; the loop here, compiled, 0.1-0.2 s.
+residual evaluations, far longer than the loop here, compiled, and also ended with a body on the boundary.
 """
 
 from __future__ import annotations

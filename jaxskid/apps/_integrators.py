@@ -25,8 +25,8 @@ class SemiImplicitEuler:
     take an explicit Euler step. It is symplectic when the mass matrix is constant (Hairer, Lubich & Wanner,
     "Geometric Numerical Integration", 2006, sec. VI.3), not for a configuration-dependent M. diffrax's
     ``SemiImplicitEuler`` takes two terms, ``dq/dt = f(p)`` and ``dp/dt = g(q)``, which ``qdd(q, qd)`` is not;
-    a step costs what diffrax's explicit ``Euler`` step costs (``benchmarks/tradeoff_rollouts.py``: 323
-    against 319 ns on the Panda, 840 against 812 ns on the quadruped, within the noise of that machine).
+    a step costs what diffrax's explicit ``Euler`` step costs, within the noise
+    (``benchmarks/tradeoff_rollouts.py``).
     """
 
     order = 1
@@ -46,10 +46,9 @@ class RK4:
     Differential Equations I", Table 1.2). Order 4.
 
     The four stages run as a ``lax.scan`` over one evaluation of ``f``, so the dynamics are traced and
-    compiled once. Kept beside diffrax because it is faster: against the same tableau as a diffrax solver in
-    ``diffeqsolve`` with ``jaxskid.vector_field`` (``benchmarks/tradeoff_rollouts.py``: 64 rollouts of 0.5 s,
-    1 ms steps, float64, closed-form forward dynamics) 339 against 495 ns per evaluation of the dynamics on
-    the Panda (1.46x), 922 against 1073 ns on the 12-DOF quadruped (1.16x).
+    compiled once. Kept beside diffrax because it is faster per evaluation of the dynamics than the same
+    tableau as a diffrax solver in ``diffeqsolve`` with ``jaxskid.vector_field``
+    (``benchmarks/tradeoff_rollouts.py`` times both on the Panda and the 12-DOF quadruped).
     """
 
     order = 4

@@ -164,7 +164,7 @@ class Layout:
     @cached_property
     def kernels(self) -> tuple[Kernel, ...]:
         """The kernels of ``names``, made once per equations, quantity and naming: the layouts of one
-        lowering (the JAX module and its native C) share them (the G1's Coriolis matrix: 2.7 s)."""
+        lowering (the JAX module and its native C) share them (for the G1's Coriolis matrix, seconds)."""
         made = self.eqs.__dict__.setdefault("_kernels", {})  # frozen, but this cache is its own
         renamed = self.eqs.__dict__.setdefault("_renamed", {}).setdefault(self.naming, {})
         rename = None

@@ -8,17 +8,17 @@ Output form. How the result array is assembled decides how fast XLA on CPU runs 
 ``python benchmarks/output_forms.py`` measures the forms on the Panda (float64, batch 65536, per state):
 
 - ``jnp.stack`` / ``jnp.array([...])`` of the entries: XLA computes each distinct entry in a kernel of
-  its own that redoes the shared work (mass matrix 710 ns);
+  its own that redoes the shared work;
 - one chain ``jnp.where(index == k, value_k, out)`` over the flattened entries: the shared work is
   hoisted out of the loop over entries, but every entry runs the whole chain of compares and selects
-  against an index held in memory, n^2 selects for n entries (260 ns);
+  against an index held in memory, n^2 selects for n entries;
 - nested chains, one per axis, on ``lax.broadcasted_iota`` of that axis: the innermost index is a loop
-  constant after unrolling, so those selects fold away, and the outer chains select whole rows (160 ns;
-  66 ns with the fusible sine and cosine of :mod:`jaxskid._kernels`);
+  constant after unrolling, so those selects fold away, and the outer chains select whole rows (faster
+  still with the fusible sine and cosine of :mod:`jaxskid._kernels`);
 - the same, with every input entry first broadcast to the output's shape (what is generated): every
   operation is then elementwise on one shape, so XLA's estimate of how often a shared value would be
-  recomputed stays low and the whole function is one kernel (mass matrix 57 ns; Coriolis matrix 570
-  against 780 ns at batch 16384, one kernel instead of 153). The shared work still runs once per state:
+  recomputed stays low and the whole function is one kernel (the Coriolis matrix: one kernel instead of
+  153). The shared work still runs once per state:
   it depends only on the state, and LLVM hoists it out of the loops over the entries.
 
 Names. The program keeps the derivation's own symbol names (``_q1``, ``_x27``) and the parameters are
@@ -87,8 +87,8 @@ def assembly_shape(shape: tuple[int, ...]) -> tuple[int, ...]:
     """The shape a result is built in: ``shape``, except that a long vector (more than 32 entries) is built
     as a matrix of about ``sqrt(N)`` rows and columns (zero-padded) and reshaped on return. A chain of
     selects over one long axis costs each entry the whole chain; two short ones cost about ``2 sqrt(N)``
-    (the vector-Jacobian product of the Panda's inverse dynamics, 84 entries, batch 1024: 2.5 us per
-    state as a vector, 0.5-0.9 us as a 6 x 14 or 12 x 7 matrix)."""
+    (the vector-Jacobian product of the Panda's inverse dynamics, 84 entries, ran several times faster
+    as a 6 x 14 or 12 x 7 matrix than as a vector)."""
     if len(shape) != 1 or shape[0] <= 32:
         return shape
     cols = math.isqrt(shape[0] - 1) + 1

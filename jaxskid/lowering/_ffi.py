@@ -4,7 +4,8 @@ shipped with jaxlib).
 
 On CPU, XLA compiles a generated program of thousands of scalar operations into many small kernels, or,
 for a result of n^2 or n * 10 n entries, into select chains whose work grows with the number of entries
-(the G1's regressor, 29 x 290: 159-240 us per state). The same arithmetic as one C function is one kernel.
+(the G1's regressor, 29 x 290, far slower than its arithmetic; ``benchmarks/scaling.py`` with
+``JAXSKID_NATIVE=0``). The same arithmetic as one C function is one kernel.
 :func:`glue_source` writes, for the generated C of :func:`jaxskid.codegen._c.native_sources`:
 
 * ``jaxskid_<quantity>(*state, p) -> out`` per matrix-valued quantity, four states at a time in vectors
@@ -275,15 +276,14 @@ CHUNK = 256
 """Statements per function of a long generated body (:func:`_chunked`)."""
 
 LONG = 1024
-"""Bodies up to this many statements stay one function (split, the Panda's regressor ran 25% slower)."""
+"""Bodies up to this many statements stay one function (split, the Panda's regressor ran slower)."""
 
 HUGE = 5000
-"""Bodies of more statements are compiled at GCC's ``-Og`` (the rest of the library at ``-O2``). GCC took
-half as long on them, and they ran as fast: the G1's Coriolis matrix (6,900 statements) and regressor
-(11,000) at 4.4 and 11.8 us per state against 5.0 and 11.8 at ``-O2`` (both libraries in one process,
-alternated); with its whole library at ``-Og``, the Coriolis matrix's cold lowering took 11.5 against 16.5
-s. Shorter bodies lost 20-40% at ``-Og`` (the G1's and the Panda's mass matrices, 1.43 against 1.09 and
-0.118 against 0.085 us), and their build is short anyway."""
+"""Bodies of more statements are compiled at GCC's ``-Og`` (the rest of the library at ``-O2``). GCC takes
+about half as long on them, and they run as fast (the G1's Coriolis matrix, 6,900 statements, and its
+regressor, 11,000, measured with both libraries in one process, alternated), which shortens the cold
+lowering of such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices),
+and their build is short anyway."""
 
 _DEF = re.compile(r"^\s*const (\w+) (\w+) = (.*);$")
 _NAME = re.compile(r"\b[A-Za-z_]\w*\b")
@@ -386,8 +386,8 @@ def _without_zeros(vector: str, name: str, n_out: int) -> tuple[str, str, str, s
 
 SCATTER = 0.75
 """The share of structurally zero entries above which a handler zeroes its result and writes only the nonzero
-entries. The G1's regressor (84 % zeros): 11.4-13.5 against 13.3-26.8 us per state, and 6-9 against 11-14 s
-cold; its Coriolis matrix (69 % zeros) ran 15 % slower that way than with one sequential copy of every entry."""
+entries. The G1's regressor (84 % zeros) runs and builds faster that way; its Coriolis matrix (69 % zeros)
+ran slower that way than with one sequential copy of every entry (``benchmarks/scaling.py --robots g1``)."""
 
 
 def glue_source(native: Mapping) -> tuple[str, bool]:

@@ -38,8 +38,8 @@ def ffi_library_soon(native: Mapping, root: Path, later: bool = False) -> None:
     """Start :func:`ffi_library` in a background thread and return at once: the compiler runs in its own
     process while the caller goes on (printing the JAX module). A build that cannot start is left to
     :func:`ffi_library`, which reports it. ``later``: the library serves only what is used later (the
-    derivatives of forward dynamics), so the compiler runs at a low priority: on two cores its build made
-    the first call of the G1's forward dynamics, which does not need it, 3-5 s slower."""
+    derivatives of forward dynamics), so the compiler runs at a low priority: on two cores its build
+    slowed the first call of the G1's forward dynamics, which does not need it."""
     try:
         plan = _plan(native, root)
     except BuildError:
@@ -122,8 +122,8 @@ def split(glue: str, cores: int) -> tuple[str, int]:
     with ``-DJAXSKID_PART=k``. The pieces of long kernels are dealt out to the parts by length; a part
     defines its own and declares the others. The handlers are part 0's, and everything else a part does not
     call is static and dropped by the compiler. Without the macro the glue is one translation unit. Fewer
-    than two pieces, or one core: one part. The G1's Coriolis matrix (17 pieces) took 12 s in one process,
-    the critical path of its cold lowering: the Python side had finished at 10 s."""
+    than two pieces, or one core: one part. The build of the G1's Coriolis matrix (17 pieces) in one process
+    was the critical path of its cold lowering: the Python side finished before it."""
     pieces = list(_PIECE.finditer(glue))
     parts = min(cores, len(pieces), 4)
     if parts < 2:

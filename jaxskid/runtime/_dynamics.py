@@ -41,8 +41,8 @@ def _traced_once(fn: Callable, name: str | None = None) -> Callable:
     shape and dtype and enters the caller's program as one equation, and JAX caches what it derives from
     it (its linearisation, transpose and batching). Called plainly, a generated function's thousands of
     operations are traced again at every use: the gradient of a rollout traced the forward dynamics, the
-    mass matrix and the vector-Jacobian product six times, 4 s of the 5 s first call of a process that
-    found the compiled program in the persistent cache."""
+    mass matrix and the vector-Jacobian product six times, most of the first call of a process that found
+    the compiled program in the persistent cache (``benchmarks/first_call.py``)."""
     jitted = jax.jit(fn)  # keeps a function's name and docstring; a partial is named here
     if name is not None:
         jitted.__name__ = name
@@ -183,8 +183,8 @@ class Dynamics(QuantitySet):
 
         It is the generated program, with a vector output of up to 32 entries computed once
         (:func:`materialize`: XLA on CPU would otherwise fuse it into each of its users and recompute it
-        there, as in the stages of a hand-written RK4 step: 0.9 against 0.12 us per evaluation of the
-        Panda's forward dynamics, and 24 against 6 s to compile). ``forward_dynamics`` is
+        there, as in the stages of a hand-written RK4 step, which then runs and compiles several times
+        slower; ``benchmarks/raw_loop.py`` times such a loop). ``forward_dynamics`` is
         :func:`~jaxskid.runtime._forward.accelerations`, the function the rollouts use,
         ``f(q, qd, tau, p, wrench=None)``, with its closed-form derivatives; it exists whenever
         :meth:`forward_dynamics` does.
@@ -271,7 +271,7 @@ class Dynamics(QuantitySet):
 
     def _packed(self, params, where: str = "params"):
         """As :meth:`QuantitySet._packed`, and a dict's vector is kept on the device too: passed to a
-        jitted function, a host array costs a transfer per call (about 20 us), a device array does not."""
+        jitted function, a host array costs a transfer per call, a device array does not."""
         packed = super()._packed(params, where)
         if not (isinstance(params, Mapping) and isinstance(packed, np.ndarray)):
             return packed
@@ -325,8 +325,8 @@ class Dynamics(QuantitySet):
                                    [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1), (out, len(shape))])
             if not batch and pair and native is None:
                 # One state alone: XLA turns the broadcast inputs back into scalars and splits the function
-                # into a kernel per shared value (20 for the Panda's mass matrix: 117 us a call on 2
-                # cores). Mapped over the state and a second, all-zero one, it stays one kernel (8 us).
+                # into a kernel per shared value (20 for the Panda's mass matrix, each call far slower).
+                # Mapped over the state and a second, all-zero one, it stays one kernel.
                 # Only at the outermost call: inside a caller's trace an enclosing vmap may batch it.
                 pairs = [jnp.stack([x, jnp.zeros_like(x)]) for x in arrays]
                 return jax.vmap(raw, in_axes=(*([0] * len(pairs)), None))(*pairs, p)[0]

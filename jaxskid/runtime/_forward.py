@@ -8,9 +8,9 @@ in closed form when the quantity ``forward_dynamics`` was lowered (:mod:`jaxskid
 otherwise with the bias ``C qd + Q_grav`` from one recursive Newton-Euler pass (``inverse_dynamics`` at
 ``qdd = 0``, measured faster than ``coriolis_torques + gravity_torques``) and a square-root-free Cholesky
 factorisation of M written out on its nonzero entries, along the tree's sparsity
-(:func:`jaxskid.runtime._sparse.mass_solver`; float64, batch 4096, against the dense unrolled factorisation
-of the assembled M: Panda 0.29 against 0.85 us per state, solo12 with a floating base 1.7 against 6.0 us,
-the G1's 29 joints 3.5 against 31 us and 23 against 102 s to compile).
+(:func:`jaxskid.runtime._sparse.mass_solver`), which runs and compiles faster than the dense unrolled
+factorisation of the assembled M, the more so the larger the tree (``benchmarks/floating_base.py`` times
+it against Pinocchio's ``aba``).
 """
 
 from __future__ import annotations

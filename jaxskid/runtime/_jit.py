@@ -18,9 +18,9 @@ def compiler_options() -> dict:
     """XLA options for the generated functions.
 
     On CPU, XLA's newer fusion emitters compile the long straight-line programs of jaxskid slowly and
-    into slow code (the second time derivative of tau on the Panda: 1.45 ms against 270 ns per state;
-    the Coriolis matrix: 747 us against 15 us), so the classic emitters are used there, where this XLA
-    still has them (:func:`classic_emitters_switch`).
+    into code that is orders of magnitude slower (the second time derivative of tau, the Coriolis matrix;
+    ``benchmarks/derivatives.py --emitters default`` compares), so the classic emitters are used there,
+    where this XLA still has them (:func:`classic_emitters_switch`).
     """
     if jax.default_backend() == "cpu" and classic_emitters_switch():
         return {"xla_cpu_use_fusion_emitters": False}
@@ -97,7 +97,7 @@ def jit(fn: Callable | None = None, **jit_kwargs) -> Callable:
     """``jax.jit`` with :func:`compiler_options` where they may be given: at the outermost call.
 
     Wrap your own functions of jaxskid's quantities with it (as jaxskid wraps its rollouts and fits): with
-    XLA's default CPU emitters, the long straight-line programs compile into code up to 1000x slower.
+    XLA's default CPU emitters, the long straight-line programs compile into far slower code.
     JAX accepts compiler options only on a top-level jit, so inside a caller's trace this is a plain
     ``jax.jit`` (and the caller's options apply). Keyword arguments go to ``jax.jit``; usable as a
     decorator, with or without them.

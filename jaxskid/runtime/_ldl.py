@@ -30,7 +30,7 @@ _reciprocal = recip
 """``1 / d`` by Newton's iteration from a bit-level first guess, the same as in generated modules
 (:mod:`jaxskid._kernels`): XLA on CPU will not fuse a division whose result has several users, so
 each pivot reciprocal of the factorisation would cut the fused kernel in pieces that recompute their
-shared inputs (measured: 1.2 us instead of 0.9 us per Panda state, and 5 us with a division per entry)."""
+shared inputs (slower per state, and slower still with a division per entry)."""
 
 
 def ldl_solve(m: jax.Array, b: jax.Array) -> jax.Array:
@@ -85,8 +85,8 @@ def ldl_substitute(factor: tuple[list, list], b: jax.Array) -> jax.Array:
 def materialize(x: jax.Array) -> jax.Array:
     """``x``, computed once. XLA on CPU fuses a producer made of cheap operations into every consumer
     fusion, so chaining accelerations (the stages of RK4) recomputed each stage inside the next one's
-    kernels: 0.46 us per evaluation alone, 1.4 us per evaluation in a chain of four (3-DOF arm, batch
-    1024). A dot is never fused on CPU and ``optimization_barrier`` is dropped by the compiler, so
+    kernels, an evaluation in a chain of four costing several times one alone. A dot is never fused on
+    CPU and ``optimization_barrier`` is dropped by the compiler, so
     ``x @ I`` (n^2 multiply-adds) materialises ``x``. Its derivative is the identity, not a second dot
     (nor a third, its transpose, in reverse mode)."""
     return x @ jnp.eye(x.shape[-1], dtype=x.dtype)

@@ -9,8 +9,8 @@ The rule (defaults fill in, unknown names are errors, leading axes are a batch) 
 * :class:`HostParameters` packs concrete parameters on the host, as a float64 NumPy array, with the
   lookups of one model built once. A call packs a dict of plain numbers (the common case:
   ``robot.default_params()`` edited by hand) this way before it enters a jitted function: passed as a
-  pytree, a dict of the G1's 290 parameters cost 7.4 ms per call to flatten and transfer leaf by leaf;
-  packed, it is one array argument, as a vector is.
+  pytree, a dict of the G1's 290 parameters is flattened and transferred leaf by leaf at every call;
+  packed, it is one array argument, as a vector is (``benchmarks/core.py --params-cost``).
 """
 
 from __future__ import annotations
@@ -99,8 +99,8 @@ class HostParameters:
     The lookups (the names, the defaults to fill in) are built once. :meth:`pack` follows
     :class:`~jaxskid.model.ParameterLayout`'s rule and raises its errors. It keeps the last mapping it
     packed (a copy) with its vector: a call with an equal mapping, the common case of one dict passed in a
-    loop, costs one dict comparison in C instead of a packing (the G1's 290 parameters, measured on a
-    loaded 2-core machine: 13 us against 75 us), so that a dict costs about what a vector does. Equal
+    loop, costs one dict comparison in C instead of a packing (``benchmarks/core.py --params-cost``), so
+    that a dict costs about what a vector does. Equal
     means equal values: ``0.0`` and ``-0.0`` are one parameter value here.
 
     Attributes:

@@ -81,8 +81,8 @@ def _stages(qdd, q, qd, p, h, torque):
 def _available(dyn) -> bool:
     """Whether the one-call steps serve ``dyn``: a fixed base with ``inverse_dynamics_vjp`` lowered. The native
     kernel runs on CPU; elsewhere (a GPU, ``JAXSKID_NATIVE=0``) the same recursion in JAX, faster there too
-    than every stage differentiated by JAX under feedback (``benchmarks/gpu_rollouts.py``; figures in the
-    README)."""
+    than every stage differentiated by JAX under feedback (``benchmarks/gpu_rollouts.py`` measures both on a
+    GPU)."""
     return not dyn.floating_base and "inverse_dynamics_vjp" in dyn.quantities
 
 

@@ -3,11 +3,11 @@
 Reverse mode through ``lax.scan`` partially evaluates the loop body, and JAX hoists out of the loop every
 value that depends only on loop constants (``_scan_known_hoisting``). For a closed form that means each of
 its parameter-only subexpressions: on the Panda's forward dynamics, 340 of them, which enter the loop's
-kernel as separate buffers. XLA on CPU then compiled that kernel 5.7x slower than the same program without
-the split (profiled: 224 against 39 ms for the 2,000 evaluations of a 500-step RK4 rollout of 64 states),
-and the gradient of that rollout cost 9-10x its loss; whole, 3.5-4.8x. Partial evaluation also visited each
-of the closed form's operations: tracing a gradient took 1.5 of the 1.9 s of its first call in a new process
-that found the compiled program in the persistent cache; now 0.4-0.7 s in all.
+kernel as separate buffers. XLA on CPU then compiles that kernel into a much slower loop than the same
+program without the split (a ``jax.profiler`` trace of a batched RK4 rollout's gradient shows it), and the
+gradient costs several times more against its loss than with the function whole. Partial evaluation also
+visits each of the closed form's operations, which was most of the tracing time of a gradient's first call
+(``benchmarks/gradients.py`` and ``benchmarks/first_call.py`` measure both).
 
 :func:`whole` hides the function behind a primitive: partial evaluation stages it out as one equation, and
 XLA compiles the same program it compiles for the function alone. The primitive evaluates, lowers, maps
