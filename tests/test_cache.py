@@ -63,9 +63,11 @@ def test_two_processes_writing_the_same_entry(tmp_path):
 
 def test_lowering_derived_equations_shares_the_robots_entry(tmp_path):
     robot = jaxskid.load(ROBOT)
-    eqs = jaxskid.derive(robot, ["mass_matrix", "gravity_torques"])
+    # a robot's request brings the quantities' pullbacks (for reverse mode): the same equations
+    names = ("mass_matrix", "gravity_torques", "mass_matrix_vjp", "gravity_torques_vjp")
+    eqs = jaxskid.derive(robot, names)
     from_eqs = jaxskid.lower(eqs, cache_dir=tmp_path)  # printed from the equations, nothing derived again
-    assert from_eqs.quantities == ("mass_matrix", "gravity_torques")
+    assert from_eqs.quantities == names
     from_robot = jaxskid.lower(robot, ["gravity_torques", "mass_matrix"], cache_dir=tmp_path)
     assert from_robot.path == from_eqs.path and from_robot.source == from_eqs.source
     subset = jaxskid.lower(eqs, "gravity_torques", cache_dir=tmp_path)

@@ -187,8 +187,8 @@ def test_jvp_through_generated_functions(panda_tau):
 
 def test_requests_are_checked(panda_tau):
     robot, dyn = panda_tau
-    with pytest.raises(jaxskid.RequestError, match="mass_matrix.*was not lowered"):
-        dyn.mass_matrix(np.zeros(7))
+    with pytest.raises(jaxskid.RequestError, match="coriolis_matrix.*was not lowered"):
+        dyn.coriolis_matrix(np.zeros(7), np.zeros(7))
     with pytest.raises(jaxskid.RequestError, match="unknown quantity 'mass_matrx'"):
         jaxskid.lower(robot, ["mass_matrx"])
     with pytest.raises(jaxskid.ShapeError, match=r"q: expected shape \(7,\)"):

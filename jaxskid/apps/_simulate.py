@@ -239,8 +239,8 @@ def rollout(
     """
     require_solver(dyn, "rollout")
     steps = _steps(steps)
-    saveat, autodiff = _check_choices(saveat, checkpoint, autodiff)
     integrator = _stepping(integrator, stepsize_controller)
+    saveat, autodiff = _check_choices(saveat, checkpoint, autodiff, _implicit(integrator))
     controller, u = as_controls(controls)
     x0, u, dtype = _inputs(dyn, x0, u)
     p = None if params is None else dyn.param_vector(params, dtype)  # None: the defaults, compiled in
@@ -310,9 +310,17 @@ def _steps(steps) -> int:
     return int(steps)
 
 
-def _check_choices(saveat, checkpoint, autodiff) -> tuple[SaveAt, str]:
+def _implicit(integrator) -> bool:
+    """Whether ``integrator`` is an implicit diffrax solver, whose root finder differentiates the dynamics in
+    forward mode at every step."""
+    solver, diffrax = getattr(integrator, "solver", None), sys.modules.get("diffrax")
+    return solver is not None and diffrax is not None and isinstance(solver, diffrax.AbstractImplicitSolver)
+
+
+def _check_choices(saveat, checkpoint, autodiff, implicit: bool = False) -> tuple[SaveAt, str]:
     """The rollout's ``saveat`` (``None``: :class:`SaveAt`), ``checkpoint`` and ``autodiff`` checked; returns
-    ``(saveat, autodiff)``, ``"auto"`` resolved by the differentiation around the call."""
+    ``(saveat, autodiff)``, ``"auto"`` resolved by the differentiation around the call (forward mode for an
+    ``implicit`` solver, which differentiates the dynamics itself)."""
     saveat = SaveAt() if saveat is None else saveat
     if autodiff not in (*AUTODIFF, "auto"):
         raise RequestError(f"rollout: autodiff must be one of {', '.join(map(repr, (*AUTODIFF, 'auto')))}, "
@@ -322,8 +330,11 @@ def _check_choices(saveat, checkpoint, autodiff) -> tuple[SaveAt, str]:
         raise RequestError(f"rollout: saveat: expected a jaxskid.SaveAt (diffrax solvers too), got {got}")
     if checkpoint is not None and not isinstance(checkpoint, Checkpoint):
         raise RequestError(f"rollout: checkpoint: expected None or jaxskid.Checkpoint(), got {checkpoint!r}")
+    if implicit and autodiff == "reverse":
+        raise RequestError("rollout: autodiff='reverse' with an implicit solver: its root finder differentiates the "
+                           "dynamics in forward mode at every step; use autodiff='auto' or 'forward'")
     if autodiff == "auto":
-        autodiff = "forward" if forward_mode() else "reverse"
+        autodiff = "forward" if implicit or forward_mode() else "reverse"
     return saveat, autodiff
 
 
