@@ -212,7 +212,8 @@ class Dynamics(QuantitySet):
         return fn
 
     def native_target(self, name: str = "fd_vjp") -> str | None:
-        """The registered XLA FFI target of a native kernel (:mod:`jaxskid.runtime._ffi`): ``"fd_vjp"``, the
+        """For the runtime's own kernels (:meth:`report` says how each quantity runs): the registered XLA FFI
+        target of a native kernel (:mod:`jaxskid.runtime._ffi`): ``"fd_vjp"``, the
         backward step of forward dynamics, ``"rk4_vjp"``, the backward pass of a Runge-Kutta step built on it
         (:mod:`jaxskid.runtime._rk4`), or the name of a quantity with a native kernel (the matrix-valued
         ones and forward dynamics). Its library is built on first use; None where there is none (not
@@ -248,7 +249,7 @@ class Dynamics(QuantitySet):
             return "JAX form (the native library could not be built; see the log)"
         return "JAX form (its generated C has no vector form: it calls a function the kernels lack)"
 
-    def native_planned(self, name: str) -> bool:
+    def _native_planned(self, name: str) -> bool:
         """Whether :meth:`native_target` is expected to give a kernel for ``name`` (its library is part of this
         lowering and native kernels are on), without building it."""
         return self._native_wanted and name in self._native_build
@@ -298,7 +299,7 @@ class Dynamics(QuantitySet):
         args, shape = self.signature(name)
         raw, plain = self._raw[name], self._plain[name]
         native = self.native_target(name)
-        if native is None and self.native_planned(name):  # the fast path left: said once per quantity
+        if native is None and self._native_planned(name):  # the fast path left: said once per quantity
             log.warning("jaxskid: %s of %s runs in its JAX form on CPU, slower: %s", name, self.robot_name,
                         self._form(name))
         raw_out = plain_out = None

@@ -10,8 +10,9 @@ of the gradient.
 
 :func:`feedback_rk4` does the same for a step under feedback, ``tau_i = u(t_i, x_i)`` at every stage (a policy
 or a stateless :class:`~jaxskid.Controller` written in JAX, closing over whatever it likes). The controller's
-Jacobian ``K_i = du/dx`` at the four stages (one batched forward-mode pass) enters the native recursion, which
-returns each stage's torque cotangent ``lambda_i``; the controller's vector-Jacobian product with respect to
+Jacobian ``K_i = du/dx`` at the four stages (one batched reverse-mode pass: ``n`` cotangents, where forward
+mode would take ``2n`` tangents) enters the native recursion, which returns each stage's torque cotangent
+``lambda_i``; the controller's vector-Jacobian product with respect to
 its closed-over values (gains, parameters) and the stage times is then one batched reverse pass over the four
 stages, instead of four differentiated stages with a backward step each.
 """
@@ -162,7 +163,8 @@ def feedback_rk4(dyn, batched: bool) -> Callable | None:
         def stage_torques(ts, consts):
             return jax.vmap(lambda ti, xi: control(ti, xi, *consts))(ts, xs)
 
-        ks = jax.vmap(jax.jacfwd(lambda ti, xi: control(ti, xi, *consts), argnums=1))(ts, xs)
+        # reverse mode: n cotangents against 2n tangents, through the quantities' closed-form pullbacks
+        ks = jax.vmap(jax.jacrev(lambda ti, xi: control(ti, xi, *consts), argnums=1))(ts, xs)
         target = dyn.native_target("rk4fb_vjp")
         kernel = recursion if target is None else native_call(target, (6 * n + n_params + 1,), recursion)
         out = kernel(qs, qds, accs, ks, p, h, gq, gqd)
