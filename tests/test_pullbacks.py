@@ -156,15 +156,25 @@ def test_single_state_and_dict_parameters(panda):
     np.testing.assert_allclose([grad[k] for k in panda.parameters], vector, rtol=1e-10, atol=1e-10)
 
 
+def _solo12():
+    names = ["mass_matrix", "inverse_dynamics"]
+    return jaxskid.lower(jaxskid.load(URDFS["solo12"], floating_base=True), names), names
+
+
+def _drives():  # armature in M, friction in tau
+    return jaxskid.lower(jaxskid.load(PANDA, lock=FINGERS, drives=True), ["inverse_dynamics"]), ["inverse_dynamics"]
+
+
+def _mimic():  # C here: on the Panda of the fast tests too
+    names = ["coriolis_matrix", "inverse_dynamics"]
+    return jaxskid.lower(jaxskid.load(PANDA, mimic=True), names), names
+
+
 @pytest.mark.slow
-def test_floating_base_drives_and_mimic():
-    names = ["mass_matrix", "inverse_dynamics"]  # C: on the Panda (fast tests) and the mimic Panda
-    solo = jaxskid.load(URDFS["solo12"], floating_base=True)
-    _check(jaxskid.lower(solo, names), batch=1, names=names)
-    drives = jaxskid.load(PANDA, lock=FINGERS, drives=True)  # armature in M, friction in tau
-    _check(jaxskid.lower(drives, ["inverse_dynamics"]), batch=1, names=["inverse_dynamics"])
-    mimic = jaxskid.lower(jaxskid.load(PANDA, mimic=True), ["coriolis_matrix", "inverse_dynamics"])
-    _check(mimic, batch=1, names=["coriolis_matrix", "inverse_dynamics"])
+@pytest.mark.parametrize("make", [_solo12, _drives, _mimic], ids=["floating_base", "drives", "mimic"])
+def test_floating_base_drives_and_mimic(make):
+    dyn, names = make()
+    _check(dyn, batch=1, names=names)
 
 
 @pytest.mark.slow
