@@ -231,3 +231,67 @@ def test_feedback_gradient_matches_complex_step_of_an_independent_rollout(arm):
             args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
             ref = float(jnp.imag(run(*args))) / h
             np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+
+
+# ---------------------------------------------------------------- closed loop: the library's tracking laws
+
+
+def _law_loss(dyn, law):
+    """A rollout under :class:`jaxskid.PDGravity` or :class:`jaxskid.ComputedTorque` whose model parameters
+    ``pc`` and gains ``kp`` are the arguments; the plant keeps its default parameters."""
+    def loss(pc, kp, dt):
+        control = getattr(jaxskid, law)(dyn, _reference, kp, 0.2 * jnp.ones(3), params=pc)
+        traj = jaxskid.rollout(dyn, X0_FB, control, dt, STEPS)
+        return jnp.sum(jnp.sin(traj.x) * jnp.arange(1, 7)[None, :]) + 1e-3 * jnp.sum(traj.tau**2)
+
+    return loss
+
+
+def _complex_law_rollout(rec, law, plant, pc, kp, dt):
+    """RK4 under the law written out over the numeric recursive dynamics, in complex arithmetic, with the
+    reference's derivatives in closed form."""
+    n, c = 3, jnp.asarray([1.0, -0.5, 0.8])
+
+    def f(t, x):
+        q, qd = x[:n], x[n:]
+        e, ed, ar = 0.3 * jnp.sin(3 * t) * c - q, 0.9 * jnp.cos(3 * t) * c - qd, -2.7 * jnp.sin(3 * t) * c
+        if law == "PDGravity":
+            tau = kp * e + 0.2 * ed + rec.inverse_dynamics(q, 0 * q, 0 * q, pc)
+        else:
+            tau = rec.inverse_dynamics(q, qd, ar + 0.2 * ed + kp * e, pc)
+        bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), plant)
+        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, plant), tau - bias)]), tau
+
+    def step(x, k):
+        t = k * dt
+        k1, tau = f(t, x)
+        k2, _ = f(t + dt / 2, x + dt / 2 * k1)
+        k3, _ = f(t + dt / 2, x + dt / 2 * k2)
+        k4, _ = f(t + dt, x + dt * k3)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, (x, tau)
+
+    _, (xs, taus) = jax.lax.scan(step, X0_FB.astype(complex), jnp.arange(STEPS, dtype=complex))
+    x = jnp.concatenate([X0_FB[None].astype(complex), xs])
+    return jnp.sum(jnp.sin(x) * jnp.arange(1, 2 * n + 1)[None, :]) + 1e-3 * jnp.sum(taus**2)
+
+
+@pytest.mark.parametrize("law", ["PDGravity", "ComputedTorque"])
+def test_tracking_law_gradients_match_complex_step_of_an_independent_rollout(arm, law):
+    """The gradient with respect to the law's model parameters (adaptive control, identification of the
+    controller's model), gains and step, through the one-call feedback step, against the complex step."""
+    robot, dyn, _, _ = arm
+    rec = recursive_dynamics(robot)
+    p, dt = dyn.param_vector(), jnp.asarray(DT)
+    run = jax.jit(lambda pc, kp, dt: _complex_law_rollout(rec, law, p.astype(complex), pc, kp, dt))
+    base = [jnp.asarray(a, complex) for a in (p, KP, dt)]
+    loss = _law_loss(dyn, law)
+    np.testing.assert_allclose(loss(p, KP, dt), jnp.real(run(*base)), rtol=1e-12)
+    grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(p, KP, dt)
+    h = 1e-30
+    for arg, g in enumerate(grads):
+        for k in range(g.size):
+            args = list(base)
+            args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
+            ref = float(jnp.imag(run(*args))) / h
+            np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))

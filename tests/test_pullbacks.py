@@ -14,19 +14,24 @@ import numpy as np
 import pytest
 
 import jaxskid
-from helpers import ERD, FINGERS, PANDA, URDFS, load
+from helpers import ERD, FINGERS, PANDA, ROBOTS_DIR, URDFS, load
 
 QUANTITIES = ["mass_matrix", "coriolis_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics"]
-ARGS = {"mass_matrix": 1, "coriolis_matrix": 2, "coriolis_torques": 2, "gravity_torques": 1, "inverse_dynamics": 3}
+CONTACT = ["ee_pose", "ee_hybrid_twist", "external_torques"]
+"""The kinematics a contact model evaluates (:class:`jaxskid.GroundContact`), with their pullbacks too."""
 
 
-def _states(dyn, batch, seed=0):
+def _states(dyn, batch, seed=0, args=("q", "qd", "qdd")):
+    """Random values of the arguments ``args`` (a unit quaternion in a floating base's ``q``)."""
     rng = np.random.default_rng(seed)
     shape = (batch,) if batch else ()
-    q = rng.normal(size=(*shape, dyn.nq))
-    if dyn.nq != dyn.nv:  # a floating base: a unit quaternion
-        q[..., 3:7] /= np.linalg.norm(q[..., 3:7], axis=-1, keepdims=True)
-    return [jnp.asarray(q), *(jnp.asarray(rng.normal(size=(*shape, dyn.nv))) for _ in range(2))]
+    out = []
+    for a in args:
+        x = rng.normal(size=(*shape, *dyn.argument_shape(a)))
+        if a == "q" and dyn.nq != dyn.nv:
+            x[..., 3:7] /= np.linalg.norm(x[..., 3:7], axis=-1, keepdims=True)
+        out.append(jnp.asarray(x))
+    return out
 
 
 def _loss(dyn, name, states, weights):
@@ -53,7 +58,7 @@ def _check(dyn, batch=4, names=QUANTITIES, tol=1e-7):
     rng = np.random.default_rng(1)
     p = dyn.param_vector()
     for name in names:
-        states = _states(dyn, batch)[: ARGS[name]]
+        states = _states(dyn, batch, args=dyn.signature(name)[0])
         shape = getattr(dyn, name)(*states).shape
         loss = _loss(dyn, name, states, jnp.asarray(rng.normal(size=shape)))
         args = (p, *states)
@@ -113,6 +118,20 @@ def test_reverse_mode_runs_the_pullback(panda):
     ours = _primitives(jax.make_jaxpr(jax.grad(lambda p: jnp.sum(panda.mass_matrix(q, p) ** 2)))(p).jaxpr)
     plain = _primitives(jax.make_jaxpr(jax.grad(lambda p: jnp.sum(unwrapped(q, p) ** 2)))(p).jaxpr)
     assert 10 * len(ours) < len(plain)
+
+
+@pytest.mark.parametrize("robot", ["solo12", "quadruped_contact"])
+def test_contact_kinematics(robot):
+    """The end-effector poses, hybrid twists and generalized forces of end-effector wrenches that a contact
+    model evaluates come with their pullbacks, which give the gradients with respect to q, qd, the wrenches
+    and every parameter: solo12 on a floating base, its four feet the end-effectors, and a quadruped whose
+    link lengths are parameters too (``robots/quadruped_contact.yaml``)."""
+    robot = (jaxskid.load(URDFS["solo12"], floating_base=True) if robot == "solo12"
+             else jaxskid.load(ROBOTS_DIR / "quadruped_contact.yaml"))
+    dyn = jaxskid.lower(robot, CONTACT)
+    assert {f"{name}_vjp" for name in CONTACT} <= set(dyn.quantities)
+    assert len(dyn.end_effectors) == 4
+    _check(dyn, batch=2, names=CONTACT)
 
 
 @pytest.fixture(scope="module")

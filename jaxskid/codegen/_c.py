@@ -124,7 +124,8 @@ FFI_QUANTITIES = ("mass_matrix", "inverse_dynamics_vjp")
 
 
 NATIVE_VECTORS = ("forward_dynamics", "inverse_dynamics_vjp", "mass_matrix_vjp", "coriolis_matrix_vjp",
-                  "gravity_torques_vjp", "coriolis_torques_vjp")
+                  "gravity_torques_vjp", "coriolis_torques_vjp", "ee_pose_vjp", "ee_hybrid_twist_vjp",
+                  "external_torques_vjp")
 """Vector-valued quantities that get a native kernel too: the closed-form forward dynamics, whose XLA program
 takes longest to compile (no XLA compile), and the pullbacks, long programs that reverse mode calls."""
 

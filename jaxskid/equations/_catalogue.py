@@ -139,11 +139,16 @@ def _vjp(r: Robot) -> tuple[int, ...]:
     return (r.nq + r.nv + len(r.parameters),)
 
 
+def _argument_size(r: Robot, arg: str) -> int:
+    """Entries of one state of a state or wrench argument: ``nq`` for ``q``, ``6 n_ee`` for a wrench, else ``nv``."""
+    return r.nq if arg == "q" else 6 * len(r.end_effectors) if arg.startswith("wrench") else r.nv
+
+
 def _pullback_shape(args: tuple[str, ...]) -> Callable[[Robot], tuple[int, ...]]:
-    return lambda r: (sum(r.nq if a == "q" else r.nv for a in args) + len(r.parameters),)
+    return lambda r: (sum(_argument_size(r, a) for a in args) + len(r.parameters),)
 
 
-def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str) -> QuantitySpec:
+def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, kinematic: bool = False) -> QuantitySpec:
     """The pullback of ``base`` (arguments ``args``): the gradients of ``<W, base>`` with respect to its state
     arguments and the parameters, concatenated. The runtime differentiates ``base`` with it in reverse mode."""
     wrt = ", ".join(f"d/d{a}" for a in (*args, "p"))
@@ -151,10 +156,10 @@ def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str) -> 
         f"{base}_vjp", (*args, cotangent), _pullback_shape(args), _no_builder,
         f"({wrt}) of sum W * {matrix}",
         f"Vector-Jacobian product of {base} with W = {cotangent}: the gradients of the weighted sum of its "
-        f"entries with respect to {', '.join(args)} and the parameters, concatenated (nq entries for q, nv for "
-        "the others, then one per parameter), by a symbolic reverse sweep of its program. It gives "
-        f"jax.grad through {base} at a few times the cost of {base} itself.",
-        pullback_of=base,
+        f"entries with respect to {', '.join(args)} and the parameters, concatenated (nq entries for q, 6 per "
+        "end-effector for a wrench, nv for the others, then one per parameter), by a symbolic reverse sweep of its "
+        f"program. It gives jax.grad through {base} at a few times the cost of {base} itself.",
+        pullback_of=base, needs_end_effector=kinematic, needs_inertia=not kinematic,
     )
 
 
@@ -261,7 +266,7 @@ _CATALOGUE = (
         "Q_ext = sum_e J_e(q)^T W_e",
         "Generalized forces of end-effector wrenches W_e (moment, force) in each end-effector's frame; "
         "W_e is what the end-effector exerts on its environment, so tau = M qdd + C qd + Q_grav + Q_ext.",
-        needs_end_effector=True, needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False, derivatives=("external_torques_vjp",),
     ),
     QuantitySpec(
         "forward_kinematics", ("q",), _poses,
@@ -314,7 +319,7 @@ _CATALOGUE = (
     QuantitySpec(
         "ee_hybrid_twist", ("q", "qd"), _per_ee, lambda d: _end_effectors(d, sym.frame_hybrid_twist),
         "V_e^h = J_e^h qd = (omega, dp_e/dt)", "Hybrid twist of each end-effector (world axes, at its origin).",
-        needs_end_effector=True, needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False, derivatives=("ee_hybrid_twist_vjp",),
     ),
     QuantitySpec(
         "ee_body_acceleration", ("q", "qd", "qdd"), _per_ee,
@@ -451,7 +456,7 @@ _CATALOGUE = (
         "ee_pose", ("q",), lambda r: (len(r.end_effectors), 4, 4),
         lambda d: _flat([_pose_entries(*sym.frame_pose(d, name)) for name in d.robot.end_effectors]),
         "C_e(q) = C_body(q) T_e", "World pose of each end-effector: forward_kinematics of those frames alone.",
-        needs_end_effector=True, needs_inertia=False,
+        needs_end_effector=True, needs_inertia=False, derivatives=("ee_pose_vjp",),
     ),
     QuantitySpec(
         "ee_parent_hybrid_jacobian", ("q",), _ee_jacobian, lambda d: _ee_matrices(d, _parent_body(sym.hybrid_jacobian)),
@@ -471,6 +476,9 @@ _CATALOGUE = (
     _pullback("coriolis_matrix", ("q", "qd"), "cotangent_matrix", "C(q, qd)"),
     _pullback("gravity_torques", ("q",), "cotangent", "Q_grav(q)"),
     _pullback("coriolis_torques", ("q", "qd"), "cotangent", "C(q, qd) qd"),
+    _pullback("ee_pose", ("q",), "cotangent_pose", "C_e(q)", kinematic=True),
+    _pullback("ee_hybrid_twist", ("q", "qd"), "cotangent_ee", "V_e^h(q, qd)", kinematic=True),
+    _pullback("external_torques", ("q", "wrench"), "cotangent", "Q_ext(q, W_e)", kinematic=True),
 )
 
 QUANTITIES: MappingProxyType[str, QuantitySpec] = MappingProxyType({spec.name: spec for spec in _CATALOGUE})

@@ -32,6 +32,8 @@ _ARGUMENT_DOCS = {
     "tau": "joint forces",
     "cotangent": "weights w of a vector-Jacobian product w^T d(joint forces)",
     "cotangent_matrix": "weights W of a vector-Jacobian product sum_ij W_ij d(matrix entry ij)",
+    "cotangent_ee": "weights W of a vector-Jacobian product sum_ek W_ek d(entry k of end-effector e)",
+    "cotangent_pose": "weights W of a vector-Jacobian product sum_eij W_eij d(pose entry ij of end-effector e)",
     "wrench": "end-effector wrenches (moment, force)",
     "wrench_d": "first time derivatives of the end-effector wrenches",
     "wrench_dd": "second time derivatives of the end-effector wrenches",
@@ -166,7 +168,7 @@ def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
     floating base's position and quaternion, or its twist or wrench, first), the wrenches ``(n_ee, 6)``."""
     n_ee = len(robot.end_effectors)
     shapes = {**{k: (robot.nq if k == "q" else robot.nv,) for k in (*STATE_ORDERS, "tau", "cotangent")},
-              "cotangent_matrix": (robot.nv, robot.nv),
+              "cotangent_matrix": (robot.nv, robot.nv), "cotangent_ee": (n_ee, 6), "cotangent_pose": (n_ee, 4, 4),
               **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
     docs = dict(_ARGUMENT_DOCS)
     if robot.floating_base:

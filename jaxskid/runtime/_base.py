@@ -137,10 +137,13 @@ class QuantitySet:
         return _ff.difference(jnp.asarray(q0), jnp.asarray(q1), self.floating_base)
 
     def argument_shape(self, arg: str) -> tuple[int, ...]:
-        """The shape of one state of the argument ``arg``: ``(n_ee, 6)`` for the wrenches, ``(nq,)`` for ``q``,
-        ``(nv,)`` for the velocity-space ones (``qd``, ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``."""
-        if arg.startswith("wrench"):
+        """The shape of one state of the argument ``arg``: ``(n_ee, 6)`` for the wrenches and ``cotangent_ee``,
+        ``(n_ee, 4, 4)`` for ``cotangent_pose``, ``(nq,)`` for ``q``, ``(nv,)`` for the velocity-space ones (``qd``,
+        ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``."""
+        if arg.startswith("wrench") or arg == "cotangent_ee":
             return (len(self.end_effectors), 6)
+        if arg == "cotangent_pose":
+            return (len(self.end_effectors), 4, 4)
         if arg == "cotangent_matrix":
             return (self.nv, self.nv)
         return (self.nq,) if arg == "q" else (self.nv,)

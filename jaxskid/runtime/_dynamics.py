@@ -153,13 +153,14 @@ class Dynamics(QuantitySet):
         if f"{name}_vjp" not in have:
             return None
         vjp = self._pullback_kernel(f"{name}_vjp")
-        sizes = [int(np.prod(self.argument_shape(a))) for a in have[name]["args"]]
+        shapes = [self.argument_shape(a) for a in have[name]["args"]]
+        sizes = [int(np.prod(s)) for s in shapes]
         ends = np.cumsum(sizes).tolist()
 
         def pull(*args):
             *state, p, w = args
             g = vjp(*state, w, p)
-            return (*(g[e - k:e] for k, e in zip(sizes, ends)), g[ends[-1]:])
+            return (*(g[e - k:e].reshape(s) for k, e, s in zip(sizes, ends, shapes)), g[ends[-1]:])
 
         return pull
 

@@ -32,7 +32,7 @@ from ._centroidal import center_of_mass, center_of_mass_jacobian, centroidal_mom
 from ._constraints import constraint_drift, constraint_jacobian, constraint_residual
 from ._coriolis import coriolis_matrix
 from ._crba import mass_matrix
-from ._derivation import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
+from ._derivation import COTANGENTS, STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs, memoized
 from ._drives import with_rotor_energy, with_rotor_momentum
 from ._energy import kinetic_energy, momentum, potential_energy
 from ._energy_regressor import (
@@ -58,6 +58,7 @@ __all__ = [
     "N_STANDARD",
     "STATE_ORDERS",
     "WRENCH_ORDERS",
+    "COTANGENTS",
     "Derivation",
     "Inputs",
     "Tape",

@@ -114,8 +114,9 @@ def partials(expr: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
 def pullback(d: Derivation, outputs: Sequence, args: Sequence[str], cotangent: str) -> list:
     """The vector-Jacobian product of a quantity with respect to all its inputs: ``d(w^T y)/dx`` for ``x`` the
     state arguments ``args`` in order (``"q"``, ``"qd"``, ...), then the parameters, with ``w`` the input
-    ``cotangent`` (``"cotangent"`` for a vector in velocity space, ``"cotangent_matrix"`` for a square matrix,
-    row-major like ``outputs``)."""
+    ``cotangent`` (one of :data:`~jaxskid.symbolic.COTANGENTS`: ``"cotangent"`` for a vector in velocity space,
+    ``"cotangent_matrix"`` for a square matrix, ``"cotangent_ee"`` for a 6-vector and ``"cotangent_pose"`` for a
+    pose per end-effector, row-major like ``outputs``)."""
     wrt = [s for a in args for s in d.inputs.by_name(a)]
     return vjp(d, outputs, d.inputs.by_name(cotangent), (*wrt, *d.inputs.params))
 

@@ -34,6 +34,10 @@ STATE_ORDERS = ("q", "qd", "qdd", "q3d", "q4d")
 WRENCH_ORDERS = ("wrench", "wrench_d", "wrench_dd")
 """The names of the end-effector wrenches and their time derivatives, by order."""
 
+COTANGENTS = ("cotangent", "cotangent_matrix", "cotangent_ee", "cotangent_pose")
+"""The names of the weights of a vector-Jacobian product: of joint forces ``(nv,)``, of a square matrix in velocity
+space ``(nv, nv)``, of a 6-vector per end-effector ``(n_ee, 6)`` and of a pose per end-effector ``(n_ee, 4, 4)``."""
+
 BASE_COLUMNS = tuple(("base", c) for c in range(6))
 """The keys of the floating base's six velocity coordinates ``(omega, v)`` among a Jacobian's columns."""
 
@@ -57,7 +61,9 @@ class Inputs:
     the r-th time derivative of the end-effector wrenches (moment, force), one 6-tuple per end-effector
     (``_w{e}_{c}``, ``_wrench_d{e}_{c}``, ``_wrench_dd{e}_{c}``); ``params`` the robot's parameters;
     ``cotangent`` the weights ``_ct{k}`` of a vector-Jacobian product of joint forces (shape ``(n,)``),
-    ``cotangent_matrix`` those ``_cm{k}`` of one of a square matrix in velocity space (``(n, n)``, row-major).
+    ``cotangent_matrix`` those ``_cm{k}`` of one of a square matrix in velocity space (``(n, n)``, row-major),
+    ``cotangent_ee`` those ``_ce{k}`` of one of a 6-vector per end-effector (``(n_ee, 6)``) and ``cotangent_pose``
+    those ``_cp{k}`` of one of a 4 x 4 pose per end-effector (``(n_ee, 4, 4)``).
     With a floating base, ``base[k]`` holds the base's symbols of order k: the position and unit quaternion
     ``(x, y, z, qx, qy, qz, qw)`` (``_q_b0`` .. ``_q_b6``) for k = 0, then the base twist ``(omega, v)`` in the
     base frame and its derivatives (``_qd_b0`` .. ``_qd_b5``, ...); ``tau`` and ``cotangent`` start with the base's
@@ -70,6 +76,8 @@ class Inputs:
     params: tuple[sp.Symbol, ...]
     cotangent: tuple[sp.Symbol, ...] = ()
     cotangent_matrix: tuple[sp.Symbol, ...] = ()
+    cotangent_ee: tuple[sp.Symbol, ...] = ()
+    cotangent_pose: tuple[sp.Symbol, ...] = ()
     coordinates: tuple[int, ...] | None = None
     """The body of each coordinate (``None``: every body, in order)."""
     base: tuple[tuple[sp.Symbol, ...], ...] = ()
@@ -94,6 +102,8 @@ class Inputs:
             params=tuple(symbol(p) for p in robot.parameters),
             cotangent=_symbols("_ct", nv),
             cotangent_matrix=_symbols("_cm", nv * nv),
+            cotangent_ee=_symbols("_ce", 6 * n_ee),
+            cotangent_pose=_symbols("_cp", 16 * n_ee),
             coordinates=None if n == robot.n_bodies else robot.coordinates,
             base=tuple(_symbols(f"_{k}_b", 7 if k == "q" else 6) for k in STATE_ORDERS) if robot.floating_base else (),
         )
@@ -119,18 +129,16 @@ class Inputs:
         return self.state[2]
 
     def by_name(self, name: str) -> tuple[sp.Symbol, ...]:
-        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"``, ``"cotangent"``, ``"cotangent_matrix"`` or one of
-        :data:`WRENCH_ORDERS`), row-major."""
+        """The flat symbols of the input ``name`` (one of :data:`STATE_ORDERS`, ``"tau"``, one of
+        :data:`COTANGENTS` or one of :data:`WRENCH_ORDERS`), row-major."""
         if name in STATE_ORDERS:
             return self.coordinate(STATE_ORDERS.index(name))
         if name in WRENCH_ORDERS:
             return tuple(s for w in self.wrenches[WRENCH_ORDERS.index(name)] for s in w)
         if name == "tau":
             return self.tau
-        if name == "cotangent":
-            return self.cotangent
-        if name == "cotangent_matrix":
-            return self.cotangent_matrix
+        if name in COTANGENTS:
+            return getattr(self, name)
         raise KeyError(name)
 
 
