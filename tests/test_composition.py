@@ -3,10 +3,11 @@
 A user's loss builds its policy inside the loss, capturing what is being differentiated (the gains being
 learnt, the parameters being identified), and reads other values from the enclosing module. Each case
 differentiates such a loss with respect to a scalar ``theta`` that scales one captured or passed value (the
-PD gains, the initial state, the inertial parameters, the step) under ``jax.grad``, ``jax.jit``,
-``jaxskid.jit``, ``jax.vmap``, ``jax.jacfwd`` and ``jax.hessian`` and their compositions, with the rollout's
-default ``autodiff``; the first derivatives are checked against central differences of the loss, the second
-against the central second difference.
+PD gains, the initial state, the inertial parameters, the step; the policy reads the state through an index
+array made inside the loss, an integer tracer under ``jax.jit``) under ``jax.grad``, ``jax.jit``, ``jaxskid.jit``,
+``jax.vmap``, ``jax.jacfwd`` and ``jax.hessian`` and their compositions, with the rollout's default
+``autodiff``; the first derivatives are checked against central differences of the loss, the second against
+the central second difference.
 """
 
 import jax
@@ -38,8 +39,11 @@ def _loss(dyn, kind):
         p = p0 * (1 + 0.1 * theta) if kind == "params" else None
         dt = 2e-3 * (1 + theta) if kind == "dt" else 2e-3
 
+        joints = jnp.arange(n)  # an index array made inside the loss: an integer tracer under jax.jit
+
         def policy(t, x):  # PD towards zero with gravity compensation from the same parameters
-            return -kp * x[:n] - KD * x[n:] + dyn.gravity_torques(x[:n], p)
+            q = x[joints]
+            return -kp * q - KD * x[n + joints] + dyn.gravity_torques(q, p)
 
         traj = jaxskid.rollout(dyn, x0, policy, dt, STEPS, params=p)
         return jnp.sum(traj.q[-1] ** 2) + jnp.mean(traj.qd**2)

@@ -14,9 +14,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+import sympy as sp
 from helpers import load
 
 import jaxskid
+from jaxskid.model._robot import symbol
 from jaxskid.testing._recursive import recursive_dynamics
 
 STEPS, DT = 12, 0.02
@@ -295,3 +297,100 @@ def test_tracking_law_gradients_match_complex_step_of_an_independent_rollout(arm
             args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
             ref = float(jnp.imag(run(*args))) / h
             np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+
+
+# ---------------------------------------------------------------- closed loop: compliant ground contact
+
+K_GROUND, C_GROUND, MU, SLIP = 300.0, 5.0, 0.8, 0.5
+
+
+def _frame_point(robot, rec, name, q, p):
+    """The origin of the frame ``name`` in the world by chaining the numeric recursion's joint poses
+    (independent of the derived ``ee_pose``)."""
+    frame = robot.frame(name)
+    offset = sp.lambdify([symbol(n) for n in robot.parameters], frame.offset, modules="jax")(*p)
+    poses = rec._kinematics(q, p)[0]
+    chain, body = [], frame.body
+    while body >= 0:
+        chain.append(body)
+        body = rec.parents[body]
+    rot, pos = jnp.eye(3, dtype=q.dtype), jnp.zeros(3, q.dtype)
+    for i in reversed(chain):
+        r_i, p_i = (jnp.asarray([[jnp.asarray(e, q.dtype) for e in row] for row in poses[i][0]]),
+                    jnp.stack([jnp.asarray(e, q.dtype) for e in poses[i][1]]))
+        rot, pos = rot @ r_i, rot @ p_i + pos
+    return rot @ jnp.asarray(offset, q.dtype)[:3, 3] + pos
+
+
+def _contact_loss(dyn, height):
+    """PD towards the reference, the gripper pressed into and sliding on the ground at ``height``: a loss of
+    the model parameters (the kinematics' lengths included) and the ground's stiffness."""
+    def loss(p, k, dt):
+        def hold(t, x):
+            return KP * (_reference(t) - x[:3]) - 0.2 * x[3:]
+
+        law = jaxskid.GroundContact(dyn, ["gripper"], stiffness=k, damping=C_GROUND, friction=MU, slip=SLIP,
+                                    height=height, inner=hold, params=p)
+        traj = jaxskid.rollout(dyn, X0_FB, law, dt, STEPS, params=p)
+        return jnp.sum(jnp.sin(traj.x) * jnp.arange(1, 7)[None, :])
+
+    return loss
+
+
+def _complex_contact_rollout(robot, rec, height, p, k, dt):
+    """The same rollout over the numeric recursion, the contact law written out with J = d(point)/dq by
+    forward mode of the chained poses, in complex arithmetic (branches on real parts)."""
+    n = 3
+
+    def f(t, x):
+        q, qd = x[:n], x[n:]
+        point = _frame_point(robot, rec, "gripper", q, p)
+        jac = jax.jacfwd(lambda q: _frame_point(robot, rec, "gripper", q, p), holomorphic=True)(q)
+        vel = jac @ qd
+        depth = height - point[2]
+        push = k * depth - C_GROUND * vel[2]
+        normal = jnp.where((jnp.real(depth) > 0) & (jnp.real(push) > 0), push, 0.0)
+        slide = vel[:2]
+        force = jnp.concatenate([-MU * normal / jnp.sqrt(jnp.sum(slide**2) + SLIP**2) * slide, normal[None]])
+        tau = KP * (_reference(t) - q) - 0.2 * qd + jac.T @ force
+        bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p)
+        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)])
+
+    def step(x, s):
+        t = s * dt
+        k1 = f(t, x)
+        k2 = f(t + dt / 2, x + dt / 2 * k1)
+        k3 = f(t + dt / 2, x + dt / 2 * k2)
+        k4 = f(t + dt, x + dt * k3)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, x
+
+    _, xs = jax.lax.scan(step, X0_FB.astype(complex), jnp.arange(STEPS, dtype=complex))
+    x = jnp.concatenate([X0_FB[None].astype(complex), xs])
+    return jnp.sum(jnp.sin(x) * jnp.arange(1, 2 * n + 1)[None, :])
+
+
+@pytest.mark.slow
+def test_contact_gradients_match_complex_step_of_an_independent_rollout():
+    """Reverse mode through :class:`jaxskid.GroundContact` (the kinematics' pullbacks inside the one-call
+    feedback step) with respect to every parameter (link lengths included) and the ground's stiffness."""
+    robot = load("arm_3dof")
+    dyn = jaxskid.lower(robot, ["forward_dynamics", "ee_pose", "ee_hybrid_twist", "external_torques"])
+    rec = recursive_dynamics(robot)
+    p, dt, k = dyn.param_vector(), jnp.asarray(DT), jnp.asarray(K_GROUND)
+    start = _frame_point(robot, rec, "gripper", X0_FB[:3], p)
+    np.testing.assert_allclose(start, dyn.ee_pose(X0_FB[:3])[0, :3, 3], rtol=1e-12, atol=1e-12)
+    height = float(start[2]) + 0.05  # pressed 5 cm into the ground at the start
+    loss = _contact_loss(dyn, height)
+    run = jax.jit(lambda p, k, dt: _complex_contact_rollout(robot, rec, height, p, k, dt))
+    base = [jnp.asarray(a, complex) for a in (p, k, dt)]
+    np.testing.assert_allclose(loss(p, k, dt), jnp.real(run(*base)), rtol=1e-12)
+    grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(p, k, dt)
+    h = 1e-30
+    for arg, g in enumerate(grads):
+        for j in range(g.size):
+            args = list(base)
+            args[arg] = (base[arg].ravel().at[j].add(1j * h)).reshape(g.shape)
+            ref = float(jnp.imag(run(*args))) / h
+            np.testing.assert_allclose(np.ravel(g)[j], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+    assert float(jnp.abs(grads[1])) > 0  # the contact acts

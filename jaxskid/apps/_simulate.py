@@ -35,7 +35,7 @@ from ..runtime._implicit import AUTODIFF
 from ..runtime._checks import check_finite
 from ..runtime._jit import forward_mode, jit, top_level, traced
 from ..runtime._free_flyer import normalize
-from ..runtime._rk4 import feedback_rk4, held_torque_rk4
+from ..runtime._rk4 import feedback_rk4, held_torque_rk4, hoist
 from ..runtime._constrained import Baumgarte
 from ._field import as_controls, constraint_forces, dynamics_field, with_input
 from ._integrators import RK4, fixed_step
@@ -103,7 +103,7 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
             return (k + 1, q1, qd1, z), ()
         if feedback is not None:
             t = k.astype(dt.dtype) * dt
-            control, consts = jax.closure_convert(lambda t, x: controller(t, x, ())[0], t, jnp.concatenate([q, qd]))
+            control, consts = hoist(lambda t, x: controller(t, x, ())[0], t, jnp.concatenate([q, qd]))
             q1, qd1, tau = feedback(control, q, qd, p, dt, t, consts)
             return (k + 1, q1, qd1, z), (tau if record else ())
         (q1, qd1, z1), tau = integrator.step(with_input(f, u_k), k.astype(dt.dtype) * dt, (q, qd, z), dt)

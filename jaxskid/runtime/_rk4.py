@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
 from ._ffi import native_call
 from ._forward import accelerations
@@ -79,6 +80,26 @@ def _stages(qdd, q, qd, p, h, torque):
     return (q + h * aq, qd + h * aqd), saved
 
 
+def hoist(fn: Callable, *args) -> tuple[Callable, list]:
+    """``(converted, consts)``: ``fn(*args) == converted(*args, *consts)`` with every value ``fn`` closes over
+    that belongs to an enclosing trace among ``consts``, whatever its dtype. :func:`jax.closure_convert`
+    leaves integer tracers (an index array a controller made inside ``jax.jit``) closed over, and they would
+    leak into the backward pass, which runs in another trace."""
+    closed, shape = jax.make_jaxpr(fn, return_shape=True)(*args)
+    traced = [isinstance(c, jax.core.Tracer) for c in closed.consts]
+    consts = [c for c, t in zip(closed.consts, traced) if t]
+    kept = [c for c, t in zip(closed.consts, traced) if not t]
+    tree = jax.tree.structure(shape)
+
+    def converted(*inputs):
+        given, hoisted = iter(kept), iter(inputs[len(args):])
+        values = [next(hoisted) if t else next(given) for t in traced]
+        flat = jax.tree.leaves(inputs[:len(args)])
+        return jax.tree.unflatten(tree, jaxpr_as_fun(ClosedJaxpr(closed.jaxpr, values))(*flat))
+
+    return converted, consts
+
+
 def _available(dyn) -> bool:
     """Whether the one-call steps serve ``dyn``: a fixed base with ``inverse_dynamics_vjp`` lowered. The native
     kernel runs on CPU; elsewhere (a GPU, ``JAXSKID_NATIVE=0``) the same recursion in JAX, faster there too
@@ -131,8 +152,7 @@ def feedback_rk4(dyn, batched: bool) -> Callable | None:
     """``step(control, q, qd, p, h, t, consts) -> (q1, qd1, tau0)``: one RK4 step of ``h`` from time ``t`` under
     the feedback ``tau = control(t, x, *consts)`` at every stage (``x = (q, qd)``; ``tau0``: the first stage's
     torque), differentiable in reverse mode with respect to all but ``control`` (module docstring).
-    ``control`` is a function without closed-over tracers (:func:`jax.closure_convert` hoists them into
-    ``consts``). None where :func:`held_torque_rk4` is None."""
+    ``control`` is a function without closed-over tracers (:func:`hoist` makes one). None where :func:`held_torque_rk4` is None."""
     if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
