@@ -5,7 +5,9 @@ vector-Jacobian product of inverse dynamics in reverse mode, the implicit-functi
 mode. They are checked against central differences of the rollout itself, and against complex-step
 derivatives (Squire & Trapp, SIAM Review 40, 1998: ``f'(x) = Im f(x + i h) / h``, exact to rounding) of a
 separate rollout: RK4 written here over the numeric recursive Newton-Euler and CRBA of
-:mod:`jaxskid.testing` with a dense complex solve.
+:mod:`jaxskid.testing` with a dense complex solve. The closed-loop cases (a PD law with gravity compensation,
+:class:`jaxskid.PDGravity`, :class:`jaxskid.ComputedTorque`, :class:`jaxskid.GroundContact`) write the law out
+too, and the four-bar's loop closure is built from the chained joint poses, differentiated by forward mode.
 """
 
 from __future__ import annotations
@@ -394,3 +396,65 @@ def test_contact_gradients_match_complex_step_of_an_independent_rollout():
             ref = float(jnp.imag(run(*args))) / h
             np.testing.assert_allclose(np.ravel(g)[j], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
     assert float(jnp.abs(grads[1])) > 0  # the contact acts
+
+
+# ---------------------------------------------------------------- a closed loop: the four-bar
+
+
+def _complex_loop_rollout(robot, rec, p, x0, u, dt, alpha=10.0, beta=10.0):
+    """RK4 of the four-bar held by its loop closure with Baumgarte's stabilisation, over the numeric recursion:
+    the residual is the world x and z of the coupler's far end minus those of the rocker's tip (chained
+    poses), its Jacobian and drift by forward mode, the KKT system solved dense, in complex arithmetic."""
+    def phi(q):
+        gap = _frame_point(robot, rec, "coupler_end", q, p) - _frame_point(robot, rec, "rocker_tip", q, p)
+        return gap[jnp.asarray([0, 2])]
+
+    def f(x, tau):
+        q, qd = x[:3], x[3:]
+        a = jax.jacfwd(phi, holomorphic=True)(q)
+        drift = jax.jacfwd(lambda q: jax.jacfwd(phi, holomorphic=True)(q) @ qd, holomorphic=True)(q) @ qd
+        gamma = -drift - 2 * alpha * a @ qd - beta**2 * phi(q)
+        kkt = jnp.block([[rec.mass_matrix(q, p), -a.T], [a, jnp.zeros((2, 2), a.dtype)]])
+        rhs = jnp.concatenate([tau - rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p), gamma])
+        return jnp.concatenate([qd, jnp.linalg.solve(kkt, rhs)[:3]])
+
+    def step(x, tau):
+        k1 = f(x, tau)
+        k2 = f(x + dt / 2 * k1, tau)
+        k3 = f(x + dt / 2 * k2, tau)
+        k4 = f(x + dt * k3, tau)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, x
+
+    _, xs = jax.lax.scan(step, x0, u)
+    return jnp.sum(jnp.concatenate([x0[None], xs]) ** 2)
+
+
+@pytest.mark.slow
+def test_loop_gradients_match_complex_step_of_an_independent_rollout():
+    """Reverse mode through the constrained rollout of the four-bar (``robots/four_bar.yaml``) with respect to
+    its parameters, initial state and torques, against the complex step of the rollout written out here."""
+    robot = load("four_bar")
+    dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics", "constraint_jacobian", "constraint_drift",
+                                "constraint_residual"])
+    rec = recursive_dynamics(robot)  # the tree: the loop enters through phi below
+    steps, dt = 40, 5e-3
+    g = jnp.asarray([1.0, -1.0, 1.0])
+    x0 = jnp.concatenate([0.9 * g, -0.5 * g])
+    u = jnp.stack([0.5 * jnp.sin(3.0 * dt * jnp.arange(steps)), jnp.zeros(steps), jnp.zeros(steps)], axis=1)
+    p = dyn.param_vector()
+
+    def loss(p, x0, u):
+        return jnp.sum(jaxskid.rollout(dyn, x0, u, dt, steps, params=p).x ** 2)
+
+    run = jax.jit(lambda p, x0, u: _complex_loop_rollout(robot, rec, p, x0, u, dt))
+    base = [jnp.asarray(a, complex) for a in (p, x0, u)]
+    np.testing.assert_allclose(loss(p, x0, u), jnp.real(run(*base)), rtol=1e-11)
+    grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(p, x0, u)
+    h, pick = 1e-30, np.random.default_rng(2)
+    for arg, grad in enumerate(grads):
+        for j in pick.choice(grad.size, size=min(grad.size, 6), replace=False):
+            args = list(base)
+            args[arg] = (base[arg].ravel().at[j].add(1j * h)).reshape(grad.shape)
+            ref = float(jnp.imag(run(*args))) / h
+            np.testing.assert_allclose(np.ravel(grad)[j], ref, rtol=1e-8, atol=1e-10 * float(jnp.abs(grad).max()))
