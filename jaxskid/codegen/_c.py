@@ -18,6 +18,7 @@ from collections.abc import Iterator, Sequence
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
+from .._generated import NativeKernel, NativeSource
 from ._common import Kernel, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 from ._printing import FastArithmetic
 
@@ -137,11 +138,11 @@ def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2 or n in NATIVE_VECTORS)
 
 
-def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequence[str] = ()) -> Iterator[dict]:
-    """The C of the native libraries of ``names``, each ``{"stem", "header", "source", "backward",
-    "kernels"}`` and built on its own. ``kernels`` lists the library's :func:`native_quantities`, each as
-    ``(name, input sizes, input core ranks, output size, output rank)`` with the parameters last;
-    ``backward`` says whether it has the backward step of forward dynamics (when ``names`` hold
+def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequence[str] = ()) -> Iterator[NativeSource]:
+    """The C of the native libraries of ``names``, each a :class:`~jaxskid._generated.NativeSource` built on
+    its own. Its ``kernels`` list the library's :func:`native_quantities`, each a
+    :class:`~jaxskid._generated.NativeKernel` (input sizes and core ranks with the parameters last, output
+    size and rank); ``backward`` says whether it has the backward step of forward dynamics (when ``names`` hold
     :data:`FFI_QUANTITIES`). The kernels of the quantities in ``first`` come in a library of their own,
     first; the others, with the backward step, in the next: the quantities that only come with the requested
     ones, for their derivatives. A generator: the caller can start building one library while the next is
@@ -158,22 +159,22 @@ def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequ
         yield _library(eqs, rest, backward, naming)
 
 
-def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> dict:
+def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> NativeSource:
     layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])), naming)
     files = emit_c(layout)
     table = []
     for name in kernels:
         args = (*eqs.quantities[name].args, "p")
-        table.append((name, tuple(layout.arg_size(a) for a in args), tuple(len(layout.arg_shape(a)) for a in args),
-                      math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
-    return {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"],
-            "backward": backward, "kernels": tuple(table)}
+        table.append(NativeKernel(name, tuple(layout.arg_size(a) for a in args),
+                                  tuple(len(layout.arg_shape(a)) for a in args),
+                                  math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
+    return NativeSource(layout.stem, files[f"{layout.stem}.h"], files[f"{layout.stem}.c"], backward, tuple(table))
 
 
-def native_block(native: Sequence[dict]) -> str:
-    """Python source assigning ``NATIVE_C`` (the libraries of :func:`native_sources`) for appending to a
-    generated JAX module; ``""`` for none."""
-    return f"\nNATIVE_C = {tuple(native)!r}\n" if native else ""
+def native_block(native: Sequence[NativeSource]) -> str:
+    """Python source assigning ``NATIVE_C`` (the libraries of :func:`native_sources`, as plain data) for
+    appending to a generated JAX module; ``""`` for none."""
+    return f"\nNATIVE_C = {tuple(n.as_dict() for n in native)!r}\n" if native else ""
 
 
 def emit_cpp(layout: Layout) -> dict[str, str]:

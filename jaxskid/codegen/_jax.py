@@ -40,7 +40,7 @@ from ..equations._derive import Equations
 from ._common import Kernel, Layout, NumberTweaks, statements, unravel
 from ._printing import FastArithmetic
 
-GENERATOR_VERSION = "14"
+GENERATOR_VERSION = "15"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 
@@ -148,8 +148,9 @@ _MAX_NESTING = 64
 
 
 def function_source(layout: Layout, k: Kernel, printer: JaxPrinter) -> str:
-    """Source of one quantity: ``_name(*args, p, spread)``, the program (``spread`` broadcasts each input
-    entry to the output's shape, or is the identity), and ``name(*args, p)``, the ``jax.custom_jvp``
+    """Source of one quantity: ``_name(*args, p, spread, entries=False)``, the program (``spread`` broadcasts
+    each input entry to the output's shape, or is the identity; ``entries=True`` returns the structurally
+    nonzero entries by flat index, unassembled, for a quantity with a shape), and ``name(*args, p)``, the ``jax.custom_jvp``
     that runs it broadcast and differentiates it unbroadcast (see the module docstring and
     :mod:`jaxskid._kernels`)."""
     args = ", ".join((*k.args, "p"))
@@ -157,11 +158,11 @@ def function_source(layout: Layout, k: Kernel, printer: JaxPrinter) -> str:
     def read(a: str, i: int) -> str:
         return f"spread({a}[{', '.join(map(str, unravel(i, layout.arg_shape(a))))}])"
 
-    lines = [f"def _{k.name}({args}, spread):"]
+    lines = [f"def _{k.name}({args}, spread{', entries=False' if k.shape else ''}):"]
     lines += ["    " + line for line in statements(k, printer, read)]
     if k.shape:  # the entries form: the structurally nonzero entries by flat index, unassembled
         nonzero = ", ".join(f"{i}: {printer.doprint(v)}" for i, v in enumerate(k.outputs) if v != 0)
-        lines += ["    if spread is _entries:", f"        return {{{nonzero}}}"]
+        lines += ["    if entries:", f"        return {{{nonzero}}}"]
     lines += ["    " + line for line in _assemble(k.shape, k.outputs, printer, f"jnp.result_type({k.args[0]}, p)")]
     spread = f"_spread({assembly_shape(k.shape)!r})" if k.shape else "_same"
     lines += [

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import functools
 import re
-from collections.abc import Mapping
 from pathlib import Path
 
+from .._generated import NativeSource
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_rk4 import RK4_BACKWARD
 from ._native import CFLAGS
@@ -390,20 +390,20 @@ entries. The G1's regressor (84 % zeros) runs and builds faster that way; its Co
 ran slower that way than with one sequential copy of every entry (``benchmarks/scaling.py --robots g1``)."""
 
 
-def glue_source(native: Mapping) -> tuple[str, bool]:
+def glue_source(native: NativeSource) -> tuple[str, bool]:
     """The C of a library's handlers (it includes the generated ``<stem>.c``) and whether the backward
-    kernel computes in vectors: the backward step when ``native["backward"]``, and a handler
-    ``jaxskid_<name>`` per entry of ``native["kernels"]`` whose C has a vector form (the others are left
+    kernel computes in vectors: the backward step when ``native.backward``, and a handler
+    ``jaxskid_<name>`` per entry of ``native.kernels`` whose C has a vector form (the others are left
     out; the JAX function serves them)."""
-    stem = native["stem"]
+    stem = native.stem
     parts = [_PRELUDE, POOL]
     lanes = None
-    if native.get("backward"):
-        lanes = lane_functions(native["source"], stem, ("mass_matrix", "inverse_dynamics_vjp"))
+    if native.backward:
+        lanes = lane_functions(native.source, stem, ("mass_matrix", "inverse_dynamics_vjp"))
         parts += [_BACKWARD.replace("@LANE_FUNCTIONS@", lanes or ""), RK4_BACKWARD]
     quantities = []
-    for name, sizes, cores, n_out, out_rank in native.get("kernels", ()):
-        vector = lane_functions(native["source"], stem, (name,), vec="V")
+    for name, sizes, cores, n_out, out_rank in native.kernels:
+        vector = lane_functions(native.source, stem, (name,), vec="V")
         if vector is None:
             continue
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
@@ -415,7 +415,7 @@ def glue_source(native: Mapping) -> tuple[str, bool]:
                           .replace("@OUT_RANK@", str(out_rank)))
     if quantities:
         parts += [_GENERIC, *quantities]
-    scalar = native.get("backward") and lanes is None
+    scalar = native.backward and lanes is None
     glue = "".join(parts).replace("@INCLUDE@", "c" if scalar else "h")
     glue = glue.replace("@STEM_UPPER@", stem.upper()).replace("@STEM@", stem)
     return glue, lanes is not None

@@ -12,17 +12,34 @@ import re
 import shutil
 import subprocess
 import threading
-from collections.abc import Mapping
+import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
+from .._generated import NativeSource
 from ._ffi import FFI_CFLAGS, LANES, _vector_flags, glue_source, include_dir
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 
 
-def ffi_library(native: Mapping, root: Path) -> Path:
+@dataclass(frozen=True)
+class NativeLibrary:
+    """One native library of a lowering (:class:`jaxskid._generated.NativeBuild`): its generated C and the
+    folder it is built in (None: a temporary folder, when the cache is off). :func:`jaxskid.lower` gives
+    these to :class:`jaxskid.Dynamics`, which builds each when it first needs one of its kernels."""
+
+    sources: NativeSource
+    root: Path | None = None
+
+    def build(self) -> Path:
+        """The built library's path (:func:`ffi_library`)."""
+        root = self.root if self.root is not None else Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
+        return ffi_library(self.sources, root)
+
+
+def ffi_library(native: NativeSource, root: Path) -> Path:
     """Build (once per machine: keyed by a hash of everything that goes in) the shared library of the
-    handlers of :func:`glue_source` for ``native`` (``{"stem", "header", "source", "backward", "kernels"}``,
-    the generated C of :func:`jaxskid.codegen._c.native_sources`), under ``root``; when
+    handlers of :func:`glue_source` for ``native`` (the generated C of
+    :func:`jaxskid.codegen._c.native_sources`), under ``root``; when
     :func:`ffi_library_soon` already started that build, wait for it.
 
     Raises:
@@ -34,7 +51,7 @@ def ffi_library(native: Mapping, root: Path) -> Path:
     return pending.result() if pending is not None else _build(*plan)
 
 
-def ffi_library_soon(native: Mapping, root: Path, later: bool = False) -> None:
+def ffi_library_soon(native: NativeSource, root: Path, later: bool = False) -> None:
     """Start :func:`ffi_library` in a background thread and return at once: the compiler runs in its own
     process while the caller goes on (printing the JAX module). A build that cannot start is left to
     :func:`ffi_library`, which reports it. ``later``: the library serves only what is used later (the
@@ -61,20 +78,20 @@ _PENDING: dict[Path, concurrent.futures.Future] = {}  # builds started by ffi_li
 _POOL: concurrent.futures.ThreadPoolExecutor | None = None
 
 
-def _plan(native: Mapping, root: Path) -> tuple:
+def _plan(native: NativeSource, root: Path) -> tuple:
     """``(library path, stem, header, source, glue, compiler command but its output)`` of :func:`ffi_library`."""
-    stem = native["stem"]
+    stem = native.stem
     glue, lanes = glue_source(native)
-    vectors = lanes or native.get("kernels")
+    vectors = lanes or native.kernels
     flags = (*CFLAGS, *FFI_CFLAGS, *((f"-DLANES={LANES}",) if lanes else ()), *(_vector_flags() if vectors else ()))
     inc = include_dir()
     if not (Path(inc) / "xla" / "ffi" / "api" / "c_api.h").exists():
         raise BuildError(f"jaxlib has no FFI header under {inc}")
     cc = _compiler()
     glue, parts = split(glue, _cores())
-    key = _key("ffi", cc, " ".join(flags), inc, native["header"], native["source"], glue, str(parts))
+    key = _key("ffi", cc, " ".join(flags), inc, native.header, native.source, glue, str(parts))
     final = root / key[:24] / f"lib{stem}_ffi.so"
-    return final, stem, native["header"], native["source"], glue, (*cc.split(), *flags, "-I", inc), parts
+    return final, stem, native.header, native.source, glue, (*cc.split(), *flags, "-I", inc), parts
 
 
 def _build(final: Path, stem: str, header: str, source: str, glue: str, command: tuple, parts: int,
