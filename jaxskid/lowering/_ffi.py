@@ -31,6 +31,7 @@ from .._generated import NativeSource
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_rk4 import RK4_BACKWARD
 from ._native import CFLAGS
+from ._templates import fill, template
 
 FFI_CFLAGS = ("-fno-math-errno",)
 """Added to :data:`~jaxskid.lowering._native.CFLAGS`: ``sin`` and ``cos`` without ``errno`` are pure, so the
@@ -39,205 +40,24 @@ compiler computes each joint's once (the generated vector-Jacobian product repea
 TARGET = "jaxskid_fd_vjp"
 """The exported handler of a library built by :func:`jaxskid.lowering._ffi_build.ffi_library`."""
 
-_PRELUDE = r"""
-#define _POSIX_C_SOURCE 200112L
-#define _DEFAULT_SOURCE
-#include <math.h>
-#include <stdint.h>
-#include <stddef.h>
-#include <stdlib.h>
-#include <string.h>
-#include <sys/mman.h>
-#include "xla/ffi/api/c_api.h"
-#include "@STEM@.@INCLUDE@"  /* the scalar C where a kernel calls it (one translation unit), else its macros */
+_PRELUDE = template("ffi_prelude.c")
+"""What every library's handlers share: the includes, the sizes of the generated C, reading and writing
+float32 or float64 buffers, and the handlers' answer to XLA's metadata query."""
 
-#define N @STEM_UPPER@_NV  /* the velocity coordinates: n, or 6 + n with a floating base */
-#define NQ @STEM_UPPER@_NQ /* the configuration: n, or 7 + n */
-#define NP @STEM_UPPER@_N_PARAMS
-#define NP1 (NP > 0 ? NP : 1)
-
-static int64_t numel(const XLA_FFI_Buffer *b)
-{
-    int64_t n = 1;
-    for (int64_t i = 0; i < b->rank; i++) n *= b->dims[i];
-    return n;
-}
-
-static double load(const XLA_FFI_Buffer *b, int64_t i)
-{
-    return b->dtype == XLA_FFI_DataType_F64 ? ((const double *)b->data)[i] : ((const float *)b->data)[i];
-}
-
-static void store(XLA_FFI_Buffer *b, int64_t i, double x)
-{
-    if (b->dtype == XLA_FFI_DataType_F64) ((double *)b->data)[i] = x;
-    else ((float *)b->data)[i] = (float)x;
-}
-
-/* The instantiation stage asks for the handler's API version; 1 then, 0 to execute. */
-static int metadata(XLA_FFI_CallFrame *call)
-{
-    if (call->extension_start == NULL || call->extension_start->type != XLA_FFI_Extension_Metadata) return 0;
-    XLA_FFI_Metadata *meta = ((XLA_FFI_Metadata_Extension *)call->extension_start)->metadata;
-    meta->api_version.major_version = XLA_FFI_API_MAJOR;
-    meta->api_version.minor_version = XLA_FFI_API_MINOR;
-    meta->traits = 0;
-    return 1;
-}
-"""
-
-_BACKWARD = r"""
-#define NV @STEM_UPPER@_INVERSE_DYNAMICS_VJP_SIZE
-#define NO (N + NV)
-#define BACKWARD_CHUNK @BACKWARD_CHUNK@
-
-#ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), the functions rewritten below */
-#define W LANES
-typedef double T __attribute__((vector_size(8 * LANES)));
-#define LANE(x, l) ((x)[l])
-#define TLIFT(e) ((T){0} + (e))
-typedef long long TI __attribute__((vector_size(8 * LANES)));
-@TRIG_T@
-static inline T Tsin(T x) { return Ttrig(x, 0); }
-static inline T Tcos(T x) { return Ttrig(x, 1); }
-static inline T positive_or_nan(T s) { for (int l = 0; l < W; l++) if (!(s[l] > 0)) s[l] = NAN; return s; }
-@LANE_FUNCTIONS@
-#define MASS @STEM@_mass_matrix_T
-#define VJP @STEM@_inverse_dynamics_vjp_T
-#else
-#define W 1
-typedef double T;
-#define LANE(x, l) (x)
-static inline T positive_or_nan(T s) { return s > 0 ? s : NAN; }
-#define MASS @STEM@_mass_matrix
-#define VJP @STEM@_inverse_dynamics_vjp
-#endif
-
-/* lambda = M^-1 g by M = L D L^T (Golub & Van Loan, Alg. 4.1.2; a pivot <= 0 gives nan), then the
-   vector-Jacobian product of inverse dynamics at lambda, negated. out = [lambda (N), -vjp (NV)]. */
-static void backward(const T *q, const T *qd, const T *a, const T *g, const T *p, T *out)
-{
-    T m[N * N], d[N], y[N];
-    MASS(q, p, m);
-    for (int j = 0; j < N; j++) {
-        T s = m[j * N + j];
-        for (int k = 0; k < j; k++) s -= m[j * N + k] * m[j * N + k] * d[k];
-        d[j] = positive_or_nan(s);
-        for (int i = j + 1; i < N; i++) {
-            T t = m[i * N + j];
-            for (int k = 0; k < j; k++) t -= m[i * N + k] * m[j * N + k] * d[k];
-            m[i * N + j] = t / d[j];
-        }
-    }
-    for (int i = 0; i < N; i++) {
-        T s = g[i];
-        for (int k = 0; k < i; k++) s -= m[i * N + k] * y[k];
-        y[i] = s;
-    }
-    for (int i = N - 1; i >= 0; i--) {
-        T s = y[i] / d[i];
-        for (int k = i + 1; k < N; k++) s -= m[k * N + i] * out[k];
-        out[i] = s;
-    }
-    VJP(q, qd, a, out, p, out + N);
-    for (int i = N; i < NO; i++) out[i] = -out[i];
-}
-
-typedef struct {
-    const XLA_FFI_Buffer *in[5];
-    XLA_FFI_Buffer *res;
-    int64_t stride[5], batch;
-} backward_job;
-
-static const int64_t backward_size[5] = {NQ, N, N, N, NP};
-
-/* States [c BACKWARD_CHUNK, (c + 1) BACKWARD_CHUNK) of the batch. */
-static void backward_chunk(void *ctx, int64_t c, int slot)
-{
-    (void)slot;
-    const backward_job *j = (const backward_job *)ctx;
-    const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
-    T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
-    T *w[5] = {q, qd, a, g, p};
-    for (int64_t b = from; b < to; b += W) {
-        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
-            const int64_t s = b + l < to ? b + l : to - 1;
-            for (int i = 0; i < 5; i++)
-                for (int64_t k = 0; k < backward_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
-        }
-        backward(q, qd, a, g, p, out);
-        for (int l = 0; l < W && b + l < to; l++)
-            for (int k = 0; k < NO; k++) store(j->res, (b + l) * NO + k, LANE(out[k], l));
-    }
-}
-
-XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
-{
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
-        return NULL;
-    backward_job j;
-    for (int i = 0; i < 5; i++) {
-        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        j.stride[i] = numel(j.in[i]) == backward_size[i] ? 0 : backward_size[i];  /* one state's: shared by the batch */
-    }
-    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    j.batch = numel(j.res) / NO;
-    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
-    parallel_for(call, pool_threads(call, chunks), chunks, backward_chunk, &j);
-    return NULL;
-}
-"""
-
-_TRIG = r"""
-/* sin (quadrant 0) or cos (quadrant 1) of every lane: x = n pi/2 + r with |r| <= pi/4 (Cody & Waite's
-   three-part pi/2, exact products for |n| < 2^20), then the minimax polynomials of sin and cos on
-   [-pi/4, pi/4] (the coefficients of Moshier's Cephes library), chosen and signed by the quadrant.
-   Within 2 ulp of libm; lanes beyond 1e5 in magnitude, infinities and nan take libm's value. */
-static inline @V@ @V@trig(@V@ x, long long quadrant)
-{
-    const @V@ shifter = @V@LIFT(6755399441055744.0); /* 1.5 * 2^52: adding it rounds to an integer */
-    const @V@ n = (x * @V@LIFT(0.63661977236758134308) + shifter) - shifter;
-    @V@ r = x - n * @V@LIFT(1.57079632673412561417e+00);
-    r = r - n * @V@LIFT(6.07710050630396597660e-11);
-    r = r - n * @V@LIFT(2.02226624879595063154e-21);
-    const @V@ z = r * r;
-    @V@ ps = @V@LIFT(1.58962301576546568060e-10);
-    ps = ps * z + @V@LIFT(-2.50507477628578072866e-8);
-    ps = ps * z + @V@LIFT(2.75573136213857245213e-6);
-    ps = ps * z + @V@LIFT(-1.98412698295895385996e-4);
-    ps = ps * z + @V@LIFT(8.33333333332211858878e-3);
-    ps = ps * z + @V@LIFT(-1.66666666666666307295e-1);
-    const @V@ s = r + r * z * ps;
-    @V@ pc = @V@LIFT(-1.13585365213876817300e-11);
-    pc = pc * z + @V@LIFT(2.08757008419747316778e-9);
-    pc = pc * z + @V@LIFT(-2.75573141792967388112e-7);
-    pc = pc * z + @V@LIFT(2.48015872888517045348e-5);
-    pc = pc * z + @V@LIFT(-1.38888888888730564116e-3);
-    pc = pc * z + @V@LIFT(4.16666666666665929218e-2);
-    const @V@ c = @V@LIFT(1.0) - @V@LIFT(0.5) * z + z * z * pc;
-    const @V@I k = __builtin_convertvector(n, @V@I) + quadrant;
-    const @V@I odd = (k & 1) != 0, negative = (k & 2) != 0;
-    const @V@I sign = (@V@I){0} + (long long)(1ULL << 63);
-    @V@ out = (@V@)((((@V@I)c) & odd) | (((@V@I)s) & ~odd));
-    out = (@V@)(((@V@I)out) ^ (negative & sign));
-    for (int l = 0; l < (int)(sizeof(@V@) / sizeof(double)); l++)
-        if (!(x[l] > -1e5 && x[l] < 1e5)) out[l] = quadrant ? cos(x[l]) : sin(x[l]);
-    return out;
-}
-
-/* sign(x) of every lane, -1, 0 or 1 (the generated C's copysign((double)(x != 0), x); a comparison of vectors
-   gives -1 where it holds) */
-static inline @V@ @V@sign(@V@ x)
-{
-    return __builtin_convertvector((x < @V@LIFT(0.0)) - (x > @V@LIFT(0.0)), @V@);
-}
-"""
+_TRIG = template("ffi_trig.h")
 """Lane-wise sine, cosine and sign of a vector type ``@V@`` (with ``@V@LIFT`` and the integer vector ``@V@I``): the
 quantity kernels' (``V``) and the backward step's (``T``; with libm per lane it spent about a third of its
 time in ``sin`` and ``cos``)."""
 
-_BACKWARD = _BACKWARD.replace("@TRIG_T@", _TRIG.replace("@V@", "T")).replace("@BACKWARD_CHUNK@", str(BACKWARD_CHUNK))
-_GENERIC = GENERIC.replace("@TRIG_V@", _TRIG.replace("@V@", "V"))
+_BACKWARD = fill(template("ffi_backward.c"), TRIG_T=fill(_TRIG, V="T"), BACKWARD_CHUNK=BACKWARD_CHUNK)
+"""The backward step of forward dynamics, ``jaxskid_fd_vjp``, with ``@LANE_FUNCTIONS@`` for the vector forms
+of the mass matrix and the inverse dynamics' vector-Jacobian product."""
+
+_GENERIC = fill(GENERIC, TRIG_V=fill(_TRIG, V="V"))
+
+
+
+
 
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
@@ -400,7 +220,7 @@ def glue_source(native: NativeSource) -> tuple[str, bool]:
     lanes = None
     if native.backward:
         lanes = lane_functions(native.source, stem, ("mass_matrix", "inverse_dynamics_vjp"))
-        parts += [_BACKWARD.replace("@LANE_FUNCTIONS@", lanes or ""), RK4_BACKWARD]
+        parts += [fill(_BACKWARD, LANE_FUNCTIONS=lanes or ""), RK4_BACKWARD]
     quantities = []
     for name, sizes, cores, n_out, out_rank in native.kernels:
         vector = lane_functions(native.source, stem, (name,), vec="V")
@@ -408,14 +228,11 @@ def glue_source(native: NativeSource) -> tuple[str, bool]:
             continue
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
         vector, nonzero, nz, n_nz = _without_zeros(vector, name, n_out)
-        quantities.append(vector + QUANTITY.replace("@NONZERO@", nonzero).replace("@NZ@", nz).replace("@N_NZ@", n_nz)
-                          .replace("@NAME@", name).replace("@ARGS@", args)
-                          .replace("@SIZES@", ", ".join(map(str, sizes))).replace("@CORES@", ", ".join(map(str, cores)))
-                          .replace("@N_IN@", str(len(sizes))).replace("@N_OUT@", str(n_out))
-                          .replace("@OUT_RANK@", str(out_rank)))
+        quantities.append(vector + fill(QUANTITY, NONZERO=nonzero, NZ=nz, N_NZ=n_nz, NAME=name, ARGS=args,
+                                        SIZES=", ".join(map(str, sizes)), CORES=", ".join(map(str, cores)),
+                                        N_IN=len(sizes), N_OUT=n_out, OUT_RANK=out_rank))
     if quantities:
         parts += [_GENERIC, *quantities]
     scalar = native.backward and lanes is None
-    glue = "".join(parts).replace("@INCLUDE@", "c" if scalar else "h")
-    glue = glue.replace("@STEM_UPPER@", stem.upper()).replace("@STEM@", stem)
+    glue = fill("".join(parts), INCLUDE="c" if scalar else "h", STEM_UPPER=stem.upper(), STEM=stem)
     return glue, lanes is not None

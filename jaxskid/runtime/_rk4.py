@@ -24,13 +24,13 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
+from .._tableau import RK4_TABLEAU
 from ._ffi import native_call
 from ._forward import accelerations
 from ._implicit import backward_kernel
 from ._sparse import mass_solver
 
-B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
-C = (0.0, 0.5, 0.5, 1.0)
+B, C = RK4_TABLEAU.b, RK4_TABLEAU.c
 
 
 def _recursion(stage_backward, n: int, qs, qds, accs, ks, p, h, gq, gqd):

@@ -1,0 +1,100 @@
+
+#define NV @STEM_UPPER@_INVERSE_DYNAMICS_VJP_SIZE
+#define NO (N + NV)
+#define BACKWARD_CHUNK @BACKWARD_CHUNK@
+
+#ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), the functions rewritten below */
+#define W LANES
+typedef double T __attribute__((vector_size(8 * LANES)));
+#define LANE(x, l) ((x)[l])
+#define TLIFT(e) ((T){0} + (e))
+typedef long long TI __attribute__((vector_size(8 * LANES)));
+@TRIG_T@
+static inline T Tsin(T x) { return Ttrig(x, 0); }
+static inline T Tcos(T x) { return Ttrig(x, 1); }
+static inline T positive_or_nan(T s) { for (int l = 0; l < W; l++) if (!(s[l] > 0)) s[l] = NAN; return s; }
+@LANE_FUNCTIONS@
+#define MASS @STEM@_mass_matrix_T
+#define VJP @STEM@_inverse_dynamics_vjp_T
+#else
+#define W 1
+typedef double T;
+#define LANE(x, l) (x)
+static inline T positive_or_nan(T s) { return s > 0 ? s : NAN; }
+#define MASS @STEM@_mass_matrix
+#define VJP @STEM@_inverse_dynamics_vjp
+#endif
+
+/* lambda = M^-1 g by M = L D L^T (Golub & Van Loan, Alg. 4.1.2; a pivot <= 0 gives nan), then the
+   vector-Jacobian product of inverse dynamics at lambda, negated. out = [lambda (N), -vjp (NV)]. */
+static void backward(const T *q, const T *qd, const T *a, const T *g, const T *p, T *out)
+{
+    T m[N * N], d[N], y[N];
+    MASS(q, p, m);
+    for (int j = 0; j < N; j++) {
+        T s = m[j * N + j];
+        for (int k = 0; k < j; k++) s -= m[j * N + k] * m[j * N + k] * d[k];
+        d[j] = positive_or_nan(s);
+        for (int i = j + 1; i < N; i++) {
+            T t = m[i * N + j];
+            for (int k = 0; k < j; k++) t -= m[i * N + k] * m[j * N + k] * d[k];
+            m[i * N + j] = t / d[j];
+        }
+    }
+    for (int i = 0; i < N; i++) {
+        T s = g[i];
+        for (int k = 0; k < i; k++) s -= m[i * N + k] * y[k];
+        y[i] = s;
+    }
+    for (int i = N - 1; i >= 0; i--) {
+        T s = y[i] / d[i];
+        for (int k = i + 1; k < N; k++) s -= m[k * N + i] * out[k];
+        out[i] = s;
+    }
+    VJP(q, qd, a, out, p, out + N);
+    for (int i = N; i < NO; i++) out[i] = -out[i];
+}
+
+typedef struct {
+    const XLA_FFI_Buffer *in[5];
+    XLA_FFI_Buffer *res;
+    int64_t stride[5], batch;
+} backward_job;
+
+static const int64_t backward_size[5] = {NQ, N, N, N, NP};
+
+/* States [c BACKWARD_CHUNK, (c + 1) BACKWARD_CHUNK) of the batch. */
+static void backward_chunk(void *ctx, int64_t c, int slot)
+{
+    (void)slot;
+    const backward_job *j = (const backward_job *)ctx;
+    const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
+    T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
+    T *w[5] = {q, qd, a, g, p};
+    for (int64_t b = from; b < to; b += W) {
+        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
+            const int64_t s = b + l < to ? b + l : to - 1;
+            for (int i = 0; i < 5; i++)
+                for (int64_t k = 0; k < backward_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
+        }
+        backward(q, qd, a, g, p, out);
+        for (int l = 0; l < W && b + l < to; l++)
+            for (int k = 0; k < NO; k++) store(j->res, (b + l) * NO + k, LANE(out[k], l));
+    }
+}
+
+XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
+{
+    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
+        return NULL;
+    backward_job j;
+    for (int i = 0; i < 5; i++) {
+        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
+        j.stride[i] = numel(j.in[i]) == backward_size[i] ? 0 : backward_size[i];  /* one state's: shared by the batch */
+    }
+    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
+    j.batch = numel(j.res) / NO;
+    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
+    parallel_for(call, pool_threads(call, chunks), chunks, backward_chunk, &j);
+    return NULL;
+}
