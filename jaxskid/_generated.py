@@ -29,27 +29,55 @@ class NativeKernel(NamedTuple):
     out_rank: int
 
 
+class Statement(NamedTuple):
+    """One line of a kernel's body over vectors of states: ``kind`` ``"unused"`` (``(void)name;``, an argument
+    it does not read), ``"input"`` (``const V name = value;``, an entry of an argument), ``"define"`` (``const
+    V name = value;``) or ``"output"`` (``out[name] = value;``); ``value`` is C in which ``@V@`` stands for the
+    vector type, and ``reads`` names the variables it reads."""
+
+    kind: str
+    name: str
+    value: str
+    reads: tuple[str, ...]
+
+
+class VectorKernel(NamedTuple):
+    """A quantity's program over vectors of states (:func:`jaxskid.codegen._c.vector_kernel`): its arguments
+    (``p`` last; the output ``out`` follows), its statements in order, and the flat indices of the outputs
+    that are zero for every state."""
+
+    args: tuple[str, ...]
+    statements: tuple[Statement, ...]
+    zeros: tuple[int, ...]
+
+
 @dataclass(frozen=True)
 class NativeSource:
     """The generated C of one native library (:func:`jaxskid.codegen._c.native_sources`): ``<stem>.h`` and
-    ``<stem>.c``, the quantities it has a kernel for and whether it has the backward step of forward
-    dynamics."""
+    ``<stem>.c``, the quantities it has a kernel for, whether it has the backward step of forward dynamics,
+    and the programs of its functions over vectors of states by quantity (None for one that has no vector form:
+    it calls a function the vector form lacks)."""
 
     stem: str
     header: str
     source: str
     backward: bool
     kernels: tuple[NativeKernel, ...]
+    vectors: Mapping[str, VectorKernel | None]
 
     def as_dict(self) -> dict:
         """Plain data, as a generated module writes it (``NATIVE_C``)."""
         return {"stem": self.stem, "header": self.header, "source": self.source, "backward": self.backward,
-                "kernels": tuple(tuple(k) for k in self.kernels)}
+                "kernels": tuple(tuple(k) for k in self.kernels),
+                "vectors": {k: None if v is None else (v.args, tuple(map(tuple, v.statements)), v.zeros)
+                            for k, v in self.vectors.items()}}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> NativeSource:
         return cls(d["stem"], d["header"], d["source"], bool(d["backward"]),
-                   tuple(NativeKernel(k[0], tuple(k[1]), tuple(k[2]), k[3], k[4]) for k in d["kernels"]))
+                   tuple(NativeKernel(k[0], tuple(k[1]), tuple(k[2]), k[3], k[4]) for k in d["kernels"]),
+                   {k: None if v is None else VectorKernel(v[0], tuple(Statement(*s) for s in v[1]), v[2])
+                    for k, v in d["vectors"].items()})
 
     @property
     def quantities(self) -> tuple[str, ...]:

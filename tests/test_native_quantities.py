@@ -377,13 +377,15 @@ def test_the_switch_is_read_when_a_dynamics_is_made(monkeypatch):
 
 
 _CHUNKED = """
+from jaxskid._generated import Statement, VectorKernel
 from jaxskid.lowering._ffi import LONG, _chunked
-reads = ", ".join(f"in{k}" for k in range(40))
-lines = [f"    const double a{k} = x[{k}];" for k in range(40)]
-lines += [f"    const double b{k} = a{k % 40} * a{(7 * k) % 40} + {k}.0;" for k in range(LONG + 200)]
-lines += [f"    out[{k}] = b{k} + a{(3 * k) % 40};" for k in range(LONG + 200)]
+lines = [Statement("input", f"a{k}", f"x[{k}]", ()) for k in range(40)]
+lines += [Statement("define", f"b{k}", f"a{k % 40} * a{(7 * k) % 40} + {k}.0", tuple(sorted({f"a{k % 40}", f"a{(7 * k) % 40}"})))
+          for k in range(LONG + 200)]
+lines += [Statement("output", str(k), f"b{k} + a{(3 * k) % 40}", tuple(sorted({f"b{k}", f"a{(3 * k) % 40}"})))
+          for k in range(LONG + 200)]
 import hashlib
-source = _chunked("f", "const double *x, double *out", "\\n".join(lines) + "\\n", "double")
+source = _chunked("f", VectorKernel(("x",), tuple(lines), ()), "double")
 print(hashlib.sha256(source.encode()).hexdigest())
 """
 

@@ -15,10 +15,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 
+import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
-from .._generated import NativeKernel, NativeSource
+from .._generated import NativeKernel, NativeSource, Statement, VectorKernel
 from ._common import Kernel, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 from ._printing import FastArithmetic
 
@@ -32,6 +33,63 @@ class CPrinter(NumberTweaks, FastArithmetic, C99CodePrinter):
         -1s, read back as the bits of a double; a call keeps such a body on the scalar path."""
         x = self._print(expr.args[0])
         return f"copysign((double)(({x}) != 0), {x})"
+
+
+class NoVectorForm(Exception):
+    """An expression that :class:`VectorPrinter` cannot print (a call other than sine, cosine and sign)."""
+
+
+class VectorPrinter(CPrinter):
+    """C over vectors of states, for the kernels of :mod:`jaxskid.lowering._ffi` (GCC/Clang vector extensions):
+    the scalar C's text, with sine, cosine and the sign of a variable calling the glue's lane-wise
+    ``@V@sin``, ``@V@cos`` and ``@V@sign``, where ``@V@`` stands for the vector type (filled in when a library
+    is built). Only sums, products, powers of a small integer exponent, numbers and these three have a vector
+    form; any other expression raises :class:`NoVectorForm`."""
+
+    def _print(self, expr, **kwargs):
+        if isinstance(expr, sp.Basic) and not _has_vector_form(expr):
+            raise NoVectorForm(type(expr).__name__)
+        return super()._print(expr, **kwargs)
+
+    def _print_sin(self, expr):
+        return f"@V@sin({self._print(expr.args[0])})"
+
+    def _print_cos(self, expr):
+        return f"@V@cos({self._print(expr.args[0])})"
+
+    def _print_sign(self, expr):
+        return f"@V@sign({self._print(expr.args[0])})"
+
+
+def _has_vector_form(e) -> bool:
+    if e.is_Symbol or e.is_Number or e.is_NumberSymbol or e.is_Add or e.is_Mul or isinstance(e, (sp.sin, sp.cos)):
+        return True
+    if e.is_Pow:  # printed as a product (NumberTweaks); other powers call sqrt or pow
+        return e.exp.is_Integer and 0 < abs(int(e.exp)) <= 8
+    return isinstance(e, sp.sign) and e.args[0].is_Symbol
+
+
+def vector_kernel(k: Kernel, printer: VectorPrinter) -> VectorKernel | None:
+    """The program of ``k`` over vectors of states, as :class:`~jaxskid._generated.Statement` objects (the
+    statements of :func:`body_lines`, a number made a vector with ``@V@LIFT``), or None where it has no vector
+    form (:class:`VectorPrinter`)."""
+
+    def value(e) -> str:
+        text = printer.doprint(e)
+        return f"@V@LIFT({text})" if e.is_Number or e.is_NumberSymbol else text
+
+    def reads(e) -> tuple[str, ...]:
+        return tuple(sorted(s.name for s in e.free_symbols))
+
+    try:
+        lines = [Statement("unused", a, "", ()) for a in k.unused]
+        lines += [Statement("input", s.name, f"{a}[{i}]", ()) for s, a, i in k.inputs]
+        lines += [Statement("define", s.name, value(e), reads(e)) for s, e in k.body]
+        lines += [Statement("output", str(i), value(e), reads(e)) for i, e in enumerate(k.outputs)]
+    except NoVectorForm:
+        return None
+    zeros = tuple(i for i, e in enumerate(k.outputs) if e.is_Number and e == 0)
+    return VectorKernel((*k.args, "p"), tuple(lines), zeros)
 
 
 class CxxPrinter(NumberTweaks, FastArithmetic, CXX11CodePrinter):
@@ -168,7 +226,10 @@ def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> NativeSou
         table.append(NativeKernel(name, tuple(layout.arg_size(a) for a in args),
                                   tuple(len(layout.arg_shape(a)) for a in args),
                                   math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
-    return NativeSource(layout.stem, files[f"{layout.stem}.h"], files[f"{layout.stem}.c"], backward, tuple(table))
+    printer = VectorPrinter()
+    vectors = {k.name: vector_kernel(k, printer) for k in layout.kernels}
+    return NativeSource(layout.stem, files[f"{layout.stem}.h"], files[f"{layout.stem}.c"], backward, tuple(table),
+                        vectors)
 
 
 def native_block(native: Sequence[NativeSource]) -> str:

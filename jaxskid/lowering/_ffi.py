@@ -23,11 +23,9 @@ build takes C text.
 
 from __future__ import annotations
 
-import functools
-import re
 from pathlib import Path
 
-from .._generated import NativeSource
+from .._generated import NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_rk4 import RK4_BACKWARD
 from ._native import CFLAGS
@@ -62,34 +60,28 @@ _GENERIC = fill(GENERIC, TRIG_V=fill(_TRIG, V="V"))
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
 
-_CALL = re.compile(r"\b([A-Za-z_]\w*)\s*\(")
-_SIGN = re.compile(r"copysign\(\(double\)\(\((\w+)\) != 0\), \1\)")
-"""The generated C's ``sign(x)`` (drives' Coulomb friction), rewritten to the lane-wise ``<vec>sign``."""
-
-
-def lane_functions(source: str, stem: str, names: tuple[str, ...], vec: str = "T") -> str | None:
-    """The generated C functions ``<stem>_<name>`` of ``source`` rewritten over vectors of ``LANES`` states
-    (``<stem>_<name>_<vec>``, of the vector type ``vec``): every ``double`` becomes ``vec``, ``sin``/``cos``
-    the glue's lane-wise ``<vec>sin``/``<vec>cos``, a right-hand side that is a number is made a vector
-    (``<vec>LIFT``), ``sign`` (:data:`_SIGN`) the lane-wise ``<vec>sign``. None when a body calls any other
-    function or has a conditional (the scalar kernel or the JAX function serves)."""
+def lane_functions(native: NativeSource, names: tuple[str, ...], vec: str = "T", drop_zeros: bool = False) -> str | None:
+    """The functions ``<stem>_<name>_<vec>`` of the quantities ``names`` over vectors of ``LANES`` states, of
+    the vector type ``vec`` (their :class:`~jaxskid._generated.VectorKernel`, printed from the generated
+    program by :func:`jaxskid.codegen._c.vector_kernel`, split by :func:`_chunked`). ``drop_zeros``: the
+    assignments of the outputs that are always zero are left out (:func:`_scattered`). None when one of them
+    has no vector form (the scalar kernel or the JAX function serves)."""
     out = []
     for name in names:
-        fn = f"{stem}_{name}"
-        m = re.search(rf"^void {fn}\((.*?)\)\n\{{\n(.*?)^\}}\n", source, re.M | re.S)
-        if m is None:
+        kernel = native.vectors.get(name)
+        if kernel is None:
             return None
-        params, body = m.group(1), m.group(2)
-        body = _SIGN.sub(rf"{vec}sign(\1)", body)
-        if "?" in body or set(_CALL.findall(body)) - {"sin", "cos", f"{vec}sign"}:
-            return None
-        params = params.replace("const double *", f"const {vec} *").replace("double *out", f"{vec} *out")
-        body = re.sub(r"\bconst double\b", f"const {vec}", body)
-        body = re.sub(r"\b(sin|cos)\(", rf"{vec}\1(", body)
-        body = re.sub(r"^(\s*[^=\n]+?) = (.+);$", functools.partial(_lift_constant, lift=f"{vec}LIFT"), body,
-                      flags=re.M)
-        out.append(_chunked(f"{fn}_{vec}", params, body, vec))
+        out.append(_chunked(f"{native.stem}_{name}_{vec}", kernel, vec, set(kernel.zeros) if drop_zeros else set()))
     return "\n".join(out)
+
+
+def _line(s: Statement, vec: str) -> str:
+    """One statement of a vector kernel as C."""
+    if s.kind == "unused":
+        return f"    (void){s.name};"
+    if s.kind == "output":
+        return f"    out[{s.name}] = {fill(s.value, V=vec)};"
+    return f"    const {vec} {s.name} = {fill(s.value, V=vec)};"
 
 
 CHUNK = 256
@@ -105,54 +97,51 @@ regressor, 11,000, measured with both libraries in one process, alternated), whi
 lowering of such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices),
 and their build is short anyway."""
 
-_DEF = re.compile(r"^\s*const (\w+) (\w+) = (.*);$")
-_NAME = re.compile(r"\b[A-Za-z_]\w*\b")
-
-
-def _chunked(name: str, params: str, body: str, vec: str) -> str:
-    """The function ``name(params)`` with ``body``, split into functions of :data:`CHUNK` statements that
-    pass the values later pieces read through a workspace. GCC's register allocator takes time quadratic in
-    a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7 minutes at ``-O1``); pieces of a few
-    hundred statements compile in linear time, and only the values that cross a boundary go to memory."""
-    lines = body.splitlines()
-    if len(lines) <= LONG:
+def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> str:
+    """The function ``name`` of ``kernel``, split into functions of :data:`CHUNK` statements that pass the
+    values later pieces read through a workspace; the outputs ``zeros`` are not assigned. GCC's register
+    allocator takes time quadratic in a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7
+    minutes at ``-O1``); pieces of a few hundred statements compile in linear time, and only the values that
+    cross a boundary go to memory."""
+    params = ", ".join([*(f"const {vec} *{a}" for a in kernel.args), f"{vec} *out"])
+    statements = kernel.statements
+    kept = [s.kind != "output" or int(s.name) not in zeros for s in statements]
+    if len(statements) <= LONG:
+        body = "".join(_line(s, vec) + "\n" for s, keep in zip(statements, kept) if keep)
         return f"static void {name}({params})\n{{\n{body}}}\n"
     defined: dict[str, int] = {}  # variable -> the chunk defining it
     inputs: dict[str, str] = {}  # variable -> its definition, for the reads of an input entry (read again)
-    reads: list[set[str]] = []
-    for k, line in enumerate(lines):
-        m = _DEF.match(line)
-        rhs = m.group(3) if m else line.split("=", 1)[-1]
-        reads.append({v for v in _NAME.findall(rhs) if v in defined})
-        if m:
-            defined[m.group(2)] = k // CHUNK
-            if re.fullmatch(r"\w+\[\d+\]", m.group(3)):
-                inputs[m.group(2)] = line
+    for k, s in enumerate(statements):
+        if s.kind in ("input", "define"):
+            defined[s.name] = k // CHUNK
+            if s.kind == "input":
+                inputs[s.name] = _line(s, vec)
     slots: dict[str, int] = {}
-    for k, used in enumerate(reads):
-        for v in sorted(used):
+    for k, s in enumerate(statements):
+        for v in s.reads:
             if defined[v] < k // CHUNK and v not in slots and v not in inputs:
                 slots[v] = len(slots)
-    args = ", ".join(re.findall(r"(\w+)(?:,|$)", params))
+    args = ", ".join([*kernel.args, "out"])
     pieces, calls = [], []
-    for c in range(0, len(lines), CHUNK):
-        chunk = lines[c:c + CHUNK]
+    for c in range(0, len(statements), CHUNK):
+        chunk = range(c, min(c + CHUNK, len(statements)))
         # inputs (no slot) by name: an order that a set's (which varies with each process's string hashes) would
         # give makes a new source, and a new build, in every process
-        needed = sorted({v for used in reads[c:c + CHUNK] for v in used if defined[v] < c // CHUNK},
+        needed = sorted({v for k in chunk for v in statements[k].reads if defined[v] < c // CHUNK},
                         key=lambda v: (slots.get(v, -1), v))
         text = [inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed]
-        for line in chunk:
-            text.append(line)
-            m = _DEF.match(line)
-            if m and m.group(2) in slots:
-                text.append(f"    w[{slots[m.group(2)]}] = {m.group(2)};")
+        for k in chunk:
+            s = statements[k]
+            if kept[k]:
+                text.append(_line(s, vec))
+            if s.kind == "define" and s.name in slots:
+                text.append(f"    w[{slots[s.name]}] = {s.name};")
         piece = f"{name}_{c // CHUNK}"
         pieces.append(f"static __attribute__((noinline)) void {piece}({params}, {vec} *w)\n{{\n"
                       + "\n".join(text) + "\n}\n")
         calls.append(f"    {piece}({args}, w);")
     workspace = f"    {vec} w[{max(len(slots), 1)}];"
-    if len(lines) > HUGE:
+    if len(statements) > HUGE:
         pieces = [_OG_PUSH, *pieces, _OG_POP]
     return "\n".join(pieces) + f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"
 
@@ -160,16 +149,6 @@ def _chunked(name: str, params: str, body: str, vec: str) -> str:
 _OG_PUSH = '#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC push_options\n#pragma GCC optimize ("Og")\n#endif'
 _OG_POP = "#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC pop_options\n#endif"
 """Around the pieces of a body longer than :data:`HUGE` statements: GCC compiles them at ``-Og``."""
-
-
-_NUMBER = re.compile(r"\b\d+\.?\d*(?:[eE][-+]?\d+)?\b|\.\d+(?:[eE][-+]?\d+)?")
-
-
-def _lift_constant(m: re.Match, lift: str) -> str:
-    """An assignment whose right-hand side names no variable (a number: ``out[3] = 0.0;``) made a vector;
-    the others already are (``0 + x`` is not folded in IEEE arithmetic, so nothing else is lifted)."""
-    target, rhs = m.group(1), m.group(2)
-    return f"{target} = {rhs};" if re.search(r"[A-Za-z_]", _NUMBER.sub("", rhs)) else f"{target} = {lift}({rhs});"
 
 
 def _vector_flags() -> tuple[str, ...]:
@@ -188,20 +167,22 @@ def include_dir() -> str:
     return jax.ffi.include_dir()
 
 
-_ZERO_OUTPUT = re.compile(r"^\s*out\[(\d+)\] = VLIFT\([-+]?0*\.?0*(?:[eE][-+]?\d+)?\);\n", re.M)
+def _scattered(kernel: VectorKernel) -> bool:
+    """Whether at least :data:`SCATTER` of a kernel's outputs are zero for every state: the handler then zeroes
+    each result row and writes only the others (and the kernel does not assign the zeros)."""
+    n_out = sum(s.kind == "output" for s in kernel.statements)
+    return len(kernel.zeros) >= SCATTER * n_out
 
 
-def _without_zeros(vector: str, name: str, n_out: int) -> tuple[str, str, str, str]:
-    """When at least :data:`SCATTER` of a kernel's entries are assigned a literal zero: the kernel without
-    those assignments and the C of the indices of the other entries, ``(kernel, declaration, pointer,
-    count)``; the handler then zeroes each result row and writes only those. Otherwise the kernel as it is."""
-    zeros = {int(k) for k in _ZERO_OUTPUT.findall(vector)}
-    if len(zeros) < SCATTER * n_out:
-        return vector, "", "NULL", "0"
-    keep = [k for k in range(n_out) if k not in zeros]
+def _nonzero(kernel: VectorKernel, name: str) -> tuple[str, str, str]:
+    """The C of the indices of a scattered kernel's other entries, ``(declaration, pointer, count)``, or
+    ``("", "NULL", "0")`` for a kernel that writes every entry."""
+    if not _scattered(kernel):
+        return "", "NULL", "0"
+    n_out = sum(s.kind == "output" for s in kernel.statements)
+    keep = [k for k in range(n_out) if k not in set(kernel.zeros)]
     values = ", ".join(map(str, keep)) or "0"
-    return (_ZERO_OUTPUT.sub("", vector), f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}",
-            str(len(keep)))
+    return f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}", str(len(keep))
 
 
 SCATTER = 0.75
@@ -219,15 +200,16 @@ def glue_source(native: NativeSource) -> tuple[str, bool]:
     parts = [_PRELUDE, POOL]
     lanes = None
     if native.backward:
-        lanes = lane_functions(native.source, stem, ("mass_matrix", "inverse_dynamics_vjp"))
+        lanes = lane_functions(native, ("mass_matrix", "inverse_dynamics_vjp"))
         parts += [fill(_BACKWARD, LANE_FUNCTIONS=lanes or ""), RK4_BACKWARD]
     quantities = []
     for name, sizes, cores, n_out, out_rank in native.kernels:
-        vector = lane_functions(native.source, stem, (name,), vec="V")
-        if vector is None:
+        kernel = native.vectors.get(name)
+        if kernel is None:
             continue
+        vector = lane_functions(native, (name,), vec="V", drop_zeros=_scattered(kernel))
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
-        vector, nonzero, nz, n_nz = _without_zeros(vector, name, n_out)
+        nonzero, nz, n_nz = _nonzero(kernel, name)
         quantities.append(vector + fill(QUANTITY, NONZERO=nonzero, NZ=nz, N_NZ=n_nz, NAME=name, ARGS=args,
                                         SIZES=", ".join(map(str, sizes)), CORES=", ".join(map(str, cores)),
                                         N_IN=len(sizes), N_OUT=n_out, OUT_RANK=out_rank))
