@@ -24,6 +24,7 @@ build takes C text.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NamedTuple
 
 from .._generated import NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
@@ -60,19 +61,35 @@ _GENERIC = fill(GENERIC, TRIG_V=fill(_TRIG, V="V"))
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
 
-def lane_functions(native: NativeSource, names: tuple[str, ...], vec: str = "T", drop_zeros: bool = False) -> str | None:
+def lane_functions(native: NativeSource, names: tuple[str, ...], vec: str = "T",
+                   drop_zeros: bool = False) -> list[str | Piece] | None:
     """The functions ``<stem>_<name>_<vec>`` of the quantities ``names`` over vectors of ``LANES`` states, of
     the vector type ``vec`` (their :class:`~jaxskid._generated.VectorKernel`, printed from the generated
     program by :func:`jaxskid.codegen._c.vector_kernel`, split by :func:`_chunked`). ``drop_zeros``: the
-    assignments of the outputs that are always zero are left out (:func:`_scattered`). None when one of them
-    has no vector form (the scalar kernel or the JAX function serves)."""
-    out = []
-    for name in names:
+    assignments of the outputs that are always zero are left out (:func:`_scattered`). The C, as text and
+    the :class:`Piece` objects of long kernels; None when one of them has no vector form (the scalar kernel
+    or the JAX function serves)."""
+    out: list[str | Piece] = []
+    for k, name in enumerate(names):
         kernel = native.vectors.get(name)
         if kernel is None:
             return None
-        out.append(_chunked(f"{native.stem}_{name}_{vec}", kernel, vec, set(kernel.zeros) if drop_zeros else set()))
-    return "\n".join(out)
+        out += ["\n"] * (k > 0)
+        out += _chunked(f"{native.stem}_{name}_{vec}", kernel, vec, set(kernel.zeros) if drop_zeros else set())
+    return out
+
+
+class Piece(NamedTuple):
+    """A piece of a long kernel (:func:`_chunked`), ``static __attribute__((noinline)) void name(params)``
+    with its ``body`` (braces included); a split build (:func:`jaxskid.lowering._ffi_build.split`) defines it
+    in one translation unit and declares it in the others."""
+
+    name: str
+    params: str
+    body: str
+
+    def text(self) -> str:
+        return f"static __attribute__((noinline)) void {self.name}({self.params})\n{self.body}"
 
 
 def _line(s: Statement, vec: str) -> str:
@@ -97,7 +114,7 @@ regressor, 11,000, measured with both libraries in one process, alternated), whi
 lowering of such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices),
 and their build is short anyway."""
 
-def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> str:
+def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> list[str | Piece]:
     """The function ``name`` of ``kernel``, split into functions of :data:`CHUNK` statements that pass the
     values later pieces read through a workspace; the outputs ``zeros`` are not assigned. GCC's register
     allocator takes time quadratic in a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7
@@ -108,7 +125,7 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
     kept = [s.kind != "output" or int(s.name) not in zeros for s in statements]
     if len(statements) <= LONG:
         body = "".join(_line(s, vec) + "\n" for s, keep in zip(statements, kept) if keep)
-        return f"static void {name}({params})\n{{\n{body}}}\n"
+        return [f"static void {name}({params})\n{{\n{body}}}\n"]
     defined: dict[str, int] = {}  # variable -> the chunk defining it
     inputs: dict[str, str] = {}  # variable -> its definition, for the reads of an input entry (read again)
     for k, s in enumerate(statements):
@@ -137,13 +154,15 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
             if s.kind == "define" and s.name in slots:
                 text.append(f"    w[{slots[s.name]}] = {s.name};")
         piece = f"{name}_{c // CHUNK}"
-        pieces.append(f"static __attribute__((noinline)) void {piece}({params}, {vec} *w)\n{{\n"
-                      + "\n".join(text) + "\n}\n")
+        pieces.append(Piece(piece, f"{params}, {vec} *w", "{\n" + "\n".join(text) + "\n}\n"))
         calls.append(f"    {piece}({args}, w);")
     workspace = f"    {vec} w[{max(len(slots), 1)}];"
     if len(statements) > HUGE:
         pieces = [_OG_PUSH, *pieces, _OG_POP]
-    return "\n".join(pieces) + f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"
+    out: list[str | Piece] = []
+    for k, piece in enumerate(pieces):
+        out += ["\n"] * (k > 0) + [piece]
+    return out + [f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"]
 
 
 _OG_PUSH = '#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC push_options\n#pragma GCC optimize ("Og")\n#endif'
@@ -192,29 +211,37 @@ ran slower that way than with one sequential copy of every entry (``benchmarks/s
 
 
 def glue_source(native: NativeSource) -> tuple[str, bool]:
-    """The C of a library's handlers (it includes the generated ``<stem>.c``) and whether the backward
-    kernel computes in vectors: the backward step when ``native.backward``, and a handler
-    ``jaxskid_<name>`` per entry of ``native.kernels`` whose C has a vector form (the others are left
-    out; the JAX function serves them)."""
+    """The C of a library's handlers as one translation unit (see :func:`glue_parts`) and whether the
+    backward kernel computes in vectors."""
+    parts, lanes = glue_parts(native)
+    return "".join(p.text() if isinstance(p, Piece) else p for p in parts), lanes
+
+
+def glue_parts(native: NativeSource) -> tuple[list[str | Piece], bool]:
+    """The C of a library's handlers (it includes the generated ``<stem>.c``), as text and the
+    :class:`Piece` objects of long kernels, and whether the backward kernel computes in vectors: the
+    backward step when ``native.backward``, and a handler ``jaxskid_<name>`` per entry of ``native.kernels``
+    whose C has a vector form (the others are left out; the JAX function serves them)."""
     stem = native.stem
-    parts = [_PRELUDE, POOL]
+    parts: list[str | Piece] = [_PRELUDE, POOL]
     lanes = None
     if native.backward:
         lanes = lane_functions(native, ("mass_matrix", "inverse_dynamics_vjp"))
-        parts += [fill(_BACKWARD, LANE_FUNCTIONS=lanes or ""), RK4_BACKWARD]
-    quantities = []
+        before, _, after = _BACKWARD.partition("@LANE_FUNCTIONS@")
+        parts += [before, *(lanes or ()), after, RK4_BACKWARD]
+    quantities: list[str | Piece] = []
     for name, sizes, cores, n_out, out_rank in native.kernels:
         kernel = native.vectors.get(name)
         if kernel is None:
             continue
-        vector = lane_functions(native, (name,), vec="V", drop_zeros=_scattered(kernel))
+        quantities += lane_functions(native, (name,), vec="V", drop_zeros=_scattered(kernel))
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
         nonzero, nz, n_nz = _nonzero(kernel, name)
-        quantities.append(vector + fill(QUANTITY, NONZERO=nonzero, NZ=nz, N_NZ=n_nz, NAME=name, ARGS=args,
-                                        SIZES=", ".join(map(str, sizes)), CORES=", ".join(map(str, cores)),
-                                        N_IN=len(sizes), N_OUT=n_out, OUT_RANK=out_rank))
+        quantities.append(fill(QUANTITY, NONZERO=nonzero, NZ=nz, N_NZ=n_nz, NAME=name, ARGS=args,
+                               SIZES=", ".join(map(str, sizes)), CORES=", ".join(map(str, cores)),
+                               N_IN=len(sizes), N_OUT=n_out, OUT_RANK=out_rank))
     if quantities:
         parts += [_GENERIC, *quantities]
     scalar = native.backward and lanes is None
-    glue = fill("".join(parts), INCLUDE="c" if scalar else "h", STEM_UPPER=stem.upper(), STEM=stem)
-    return glue, lanes is not None
+    names = dict(INCLUDE="c" if scalar else "h", STEM_UPPER=stem.upper(), STEM=stem)
+    return [p if isinstance(p, Piece) else fill(p, **names) for p in parts], lanes is not None

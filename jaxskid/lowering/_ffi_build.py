@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import concurrent.futures
 import os
-import re
 import shutil
 import subprocess
 import threading
@@ -17,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._generated import NativeSource
-from ._ffi import FFI_CFLAGS, LANES, _vector_flags, glue_source, include_dir
+from ._ffi import FFI_CFLAGS, LANES, Piece, _vector_flags, glue_parts, include_dir
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 
 
@@ -81,7 +80,7 @@ _POOL: concurrent.futures.ThreadPoolExecutor | None = None
 def _plan(native: NativeSource, root: Path) -> tuple:
     """``(library path, stem, header, source, glue, compiler command but its output)`` of :func:`ffi_library`."""
     stem = native.stem
-    glue, lanes = glue_source(native)
+    glue, lanes = glue_parts(native)
     vectors = lanes or native.kernels
     flags = (*CFLAGS, *FFI_CFLAGS, *((f"-DLANES={LANES}",) if lanes else ()), *(_vector_flags() if vectors else ()))
     inc = include_dir()
@@ -130,31 +129,28 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
-_PIECE = re.compile(r"^static __attribute__\(\(noinline\)\) void (\w+)\((.*?)\)\n\{\n.*?^\}\n", re.M | re.S)
-_HANDLER = re.compile(r"^XLA_FFI_Error \*jaxskid_\w+\(XLA_FFI_CallFrame \*call\)\n\{\n.*?^\}\n", re.M | re.S)
-
-
-def split(glue: str, cores: int) -> tuple[str, int]:
-    """``(glue, parts)``: the glue as ``parts`` translation units, one per core (at most 4), each compiled
-    with ``-DJAXSKID_PART=k``. The pieces of long kernels are dealt out to the parts by length; a part
-    defines its own and declares the others. The handlers are part 0's, and everything else a part does not
-    call is static and dropped by the compiler. Without the macro the glue is one translation unit. Fewer
-    than two pieces, or one core: one part. The build of the G1's Coriolis matrix (17 pieces) in one process
-    was the critical path of its cold lowering: the Python side finished before it."""
-    pieces = list(_PIECE.finditer(glue))
+def split(glue: list[str | Piece], cores: int) -> tuple[str, int]:
+    """``(glue, parts)``: the glue (:func:`._ffi.glue_parts`) as ``parts`` translation units, one per core (at
+    most 4), each compiled with ``-DJAXSKID_PART=k``. The pieces of long kernels are dealt out to the parts by
+    length; a part defines its own and declares the others. The handlers are part 0's (the templates guard
+    them with ``#if JAXSKID_PART == 0``), and everything else a part does not call is static and dropped by the
+    compiler. Without the macro the glue is one translation unit. Fewer than two pieces, or one core: one
+    part. The build of the G1's Coriolis matrix (17 pieces) in one process was the critical path of its cold
+    lowering: the Python side finished before it."""
+    pieces = [p for p in glue if isinstance(p, Piece)]
     parts = min(cores, len(pieces), 4)
     if parts < 2:
-        return glue, 1
+        return "".join(p.text() if isinstance(p, Piece) else p for p in glue), 1
     load, owner = [0] * parts, {}
-    for m in sorted(pieces, key=lambda m: -len(m.group(0))):
+    for p in sorted(pieces, key=lambda p: -len(p.text())):
         k = load.index(min(load))
-        owner[m.group(1)] = k
-        load[k] += len(m.group(0))
+        owner[p.name] = k
+        load[k] += len(p.text())
 
-    def piece(m: re.Match) -> str:
-        name, params = m.group(1), m.group(2)
-        body = m.group(0).replace("static __attribute__((noinline))", "PIECE", 1)
-        return f"#if JAXSKID_PART == {owner[name]}\n{body}#else\nPIECE void {name}({params});\n#endif\n"
+    def text(p: str | Piece) -> str:
+        if not isinstance(p, Piece):
+            return p
+        return (f"#if JAXSKID_PART == {owner[p.name]}\nPIECE void {p.name}({p.params})\n{p.body}#else\n"
+                f"PIECE void {p.name}({p.params});\n#endif\n")
 
-    glue = _HANDLER.sub(lambda m: f"#if JAXSKID_PART == 0\n{m.group(0)}#endif\n", _PIECE.sub(piece, glue))
-    return '#define PIECE __attribute__((noinline, visibility("hidden")))\n' + glue, parts
+    return '#define PIECE __attribute__((noinline, visibility("hidden")))\n' + "".join(map(text, glue)), parts

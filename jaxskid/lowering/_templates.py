@@ -5,10 +5,7 @@ extension module (:mod:`._extension`). A template marks what is filled in with `
 from __future__ import annotations
 
 import functools
-import re
 from importlib import resources
-
-_PLACEHOLDER = re.compile(r"@[A-Z][A-Z0-9_]*@")
 
 
 @functools.cache
@@ -23,7 +20,3 @@ def fill(text: str, **values) -> str:
         text = text.replace(f"@{key}@", str(value))
     return text
 
-
-def unfilled(text: str) -> list[str]:
-    """The placeholders left in ``text``."""
-    return sorted(set(_PLACEHOLDER.findall(text)))

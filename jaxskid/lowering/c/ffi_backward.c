@@ -83,6 +83,7 @@ static void backward_chunk(void *ctx, int64_t c, int slot)
     }
 }
 
+#if JAXSKID_PART == 0  /* the handlers: in the first part of a split build */
 XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 {
     if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
@@ -98,3 +99,4 @@ XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
     parallel_for(call, pool_threads(call, chunks), chunks, backward_chunk, &j);
     return NULL;
 }
+#endif

@@ -91,6 +91,7 @@ static void rk4fb_chunk(void *ctx, int64_t c, int slot)
     }
 }
 
+#if JAXSKID_PART == 0  /* the handlers: in the first part of a split build */
 XLA_FFI_Error *jaxskid_rk4fb_vjp(XLA_FFI_CallFrame *call)
 {
     if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 8 || call->rets.size != 1)
@@ -106,6 +107,7 @@ XLA_FFI_Error *jaxskid_rk4fb_vjp(XLA_FFI_CallFrame *call)
     parallel_for(call, pool_threads(call, chunks), chunks, rk4fb_chunk, &j);
     return NULL;
 }
+#endif
 
 static void rk4_chunk(void *ctx, int64_t c, int slot)
 {
@@ -126,6 +128,7 @@ static void rk4_chunk(void *ctx, int64_t c, int slot)
     }
 }
 
+#if JAXSKID_PART == 0  /* the handlers: in the first part of a split build */
 XLA_FFI_Error *jaxskid_rk4_vjp(XLA_FFI_CallFrame *call)
 {
     if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 7 || call->rets.size != 1)
@@ -141,4 +144,5 @@ XLA_FFI_Error *jaxskid_rk4_vjp(XLA_FFI_CallFrame *call)
     parallel_for(call, pool_threads(call, chunks), chunks, rk4_chunk, &j);
     return NULL;
 }
+#endif
 #endif
