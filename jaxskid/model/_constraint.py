@@ -36,10 +36,9 @@ import sympy as sp
 
 from .._errors import ModelError
 from . import _lie as lie
-from ._validate import check_pose, describe, to_expr
-
-AXES = ("rx", "ry", "rz", "x", "y", "z")
-"""The constraint directions, world-aligned: rotations about, then translations along, the world axes."""
+from ._closure import check_satisfiable
+from ._lie import AXES
+from ._validate import check_pose, describe, matrix, to_expr
 
 KINDS = {"point": AXES[3:], "frame": AXES}
 """The named sets of axes of a :class:`LoopClosure`."""
@@ -115,9 +114,7 @@ class FrameContact:
     def _given(self, where: str) -> sp.Matrix | None:
         if self.pose is None:
             return None
-        from ._robot import _matrix  # the one reader of matrices of the model
-
-        return _matrix(self.pose, (4, 4), f"{where}.pose")
+        return matrix(self.pose, (4, 4), f"{where}.pose")
 
     def mapped(self, fn: Callable) -> "FrameContact":
         return replace(self, pose=None if self.pose is None else sp.ImmutableMatrix(sp.Matrix(self.pose).applyfunc(fn)))
@@ -170,8 +167,6 @@ def check_constraints(robot, constraints: Sequence, values: Mapping) -> tuple[Co
     of :data:`AXES`, contacts' anchors computed and ``at`` cleared; then checked to be satisfiable near the
     reference configuration with the default parameter ``values`` (symbol -> number). Errors name
     ``constraints[k]`` and the key."""
-    from ._closure import check_satisfiable
-
     if isinstance(constraints, CONSTRAINT_TYPES) or not isinstance(constraints, Sequence):
         raise ModelError(f"expected a list of constraints, got {describe(constraints)}", where="constraints")
     out, starts = [], []

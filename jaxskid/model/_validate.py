@@ -351,3 +351,18 @@ def check_defaults(defaults: Mapping) -> dict[str, float]:
             raise ModelError(f"expected a finite number, got {v!r}", where=f"defaults.{k}")
         out[str(k)] = x
     return out
+
+
+def matrix(value, shape, where) -> sp.ImmutableMatrix:
+    """The one reader of the model's matrices: a matrix of ``shape`` whose entries are read by :func:`to_expr`
+    (strings too: never ``sympify``)."""
+    rows = value.tolist() if isinstance(value, sp.MatrixBase) else value
+    try:
+        rows = [list(r) for r in rows]
+    except TypeError:
+        raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got {value!r}", where=where) from None
+    if len(rows) != shape[0] or any(len(r) != shape[1] for r in rows):
+        got = f"{len(rows)}x{len(rows[0]) if rows else 0}"
+        raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got shape {got}", where=where)
+    return sp.ImmutableMatrix(shape[0], shape[1], [to_expr(x, where=f"{where}[{r}][{c}]")
+                                                   for r, row in enumerate(rows) for c, x in enumerate(row)])
