@@ -186,13 +186,13 @@ def compile_native(
     files = emit_c(layout)
     header, source = files[f"{layout.stem}.h"], files[f"{layout.stem}.c"]
     symbols = {n: f"{layout.stem}_{n}" for n in names}
-    arity = {symbols[k.name]: len(k.args) + 2 for k in layout.kernels}  # the state arguments, p and out
+    arity = {symbols[k.name]: len(k.args) + 2 for k in layout.programs}  # the state arguments, p and out
     root = Path(cache_dir) if cache_dir is not None else default_cache_dir() / "native"
     backend = backend or default_backend()
     metadata = layout.metadata()
     methods = ()
     if backend == "capi":
-        methods = tuple(_method(k, symbols[k.name], layout, metadata["quantities"][k.name]) for k in layout.kernels)
+        methods = tuple(_method(k, symbols[k.name], layout, metadata["quantities"][k.name]) for k in layout.programs)
     library = build(layout.stem, header, source, arity, backend, root, methods)
     return NativeDynamics(metadata, {n: library.functions[c] for n, c in symbols.items()}, ffi=library.ffi,
                           path=library.path, source=source, catalogue=tuple(QUANTITIES), backend=backend,

@@ -20,7 +20,7 @@ from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
 from .._generated import NativeKernel, NativeSource, Statement, VectorKernel
-from ._common import Kernel, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
+from ._common import Program, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 from ._printing import FastArithmetic
 
 
@@ -69,7 +69,7 @@ def _has_vector_form(e) -> bool:
     return isinstance(e, sp.sign) and e.args[0].is_Symbol
 
 
-def vector_kernel(k: Kernel, printer: VectorPrinter) -> VectorKernel | None:
+def vector_kernel(k: Program, printer: VectorPrinter) -> VectorKernel | None:
     """The program of ``k`` over vectors of states, as :class:`~jaxskid._generated.Statement` objects (the
     statements of :func:`body_lines`, a number made a vector with ``@V@LIFT``), or None where it has no vector
     form (:class:`VectorPrinter`)."""
@@ -98,7 +98,7 @@ class CxxPrinter(NumberTweaks, FastArithmetic, CXX11CodePrinter):
     _sqrt_name = "std::sqrt"
 
 
-def body_lines(k: Kernel, printer, *, decl: str, indent: str = "    ", out: str = "out[{k}]") -> list[str]:
+def body_lines(k: Program, printer, *, decl: str, indent: str = "    ", out: str = "out[{k}]") -> list[str]:
     """The statements of a C-like function body: read the inputs, assign, write the outputs."""
     lines = [f"{indent}(void){a};" for a in k.unused]
     lines += statements(k, printer, lambda a, i: f"{a}[{i}]", f"{indent}{decl} {{}} = {{}};")
@@ -111,7 +111,7 @@ def _block(text: str) -> str:
     return text.replace("*/", "* /")
 
 
-def _params(k: Kernel) -> str:
+def _params(k: Program) -> str:
     return ", ".join([*(f"const double *{a}" for a in k.args), "const double *p", "double *out"])
 
 
@@ -150,14 +150,14 @@ def emit_c(layout: Layout) -> dict[str, str]:
     h = [head, f"#ifndef JAXSKID_{S}_H", f"#define JAXSKID_{S}_H", "", "#ifdef __cplusplus", 'extern "C" {',
          "#endif", "", f"#define {S}_N_DOF {layout.n_dof}", f"#define {S}_NQ {layout.robot.nq}",
          f"#define {S}_NV {layout.robot.nv}", f"#define {S}_N_PARAMS {n_par}"]
-    for k in layout.kernels:
+    for k in layout.programs:
         h.append(f"#define {S}_{k.name.upper()}_SIZE {k.size}")
     h.append("")
     if n_par:
         h += ["/* Parameter names and default values, in the order of p (NAN: no default). */",
               f"extern const char *const {s}_parameter_names[{S}_N_PARAMS];",
               f"extern const double {s}_default_params[{S}_N_PARAMS];", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         shapes = ", ".join(f"{a}: {shape_str(layout.arg_shape(a))}" for a in (*k.args, "p"))
         h += [f"/* {_block(k.equation)}", f" * {_block(k.doc)}",
               f" * {shapes} -> out: {shape_str(k.shape)}, row-major ({k.size} doubles). */",
@@ -172,7 +172,7 @@ def emit_c(layout: Layout) -> dict[str, str]:
         c.append(f"const double {s}_default_params[{S}_N_PARAMS] = "
                  f"{_initializer([_c_double(v) for v in layout.defaults])};")
         c.append("")
-    for k in layout.kernels:
+    for k in layout.programs:
         c += [f"void {s}_{k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
     return {f"{s}.h": "\n".join(h), f"{s}.c": "\n".join(c)}
 
@@ -227,7 +227,7 @@ def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> NativeSou
                                   tuple(len(layout.arg_shape(a)) for a in args),
                                   math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
     printer = VectorPrinter()
-    vectors = {k.name: vector_kernel(k, printer) for k in layout.kernels}
+    vectors = {k.name: vector_kernel(k, printer) for k in layout.programs}
     return NativeSource(layout.stem, files[f"{layout.stem}.h"], files[f"{layout.stem}.c"], backward, tuple(table),
                         vectors)
 
@@ -249,7 +249,7 @@ def emit_cpp(layout: Layout) -> dict[str, str]:
          "// Parameter names and default values, in the order of p (NaN: no default).",
          f"extern const std::array<const char *, {n_par}> parameter_names;",
          f"extern const std::array<double, {n_par}> default_params;", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         shapes = ", ".join(f"{a}: {shape_str(layout.arg_shape(a))}" for a in (*k.args, "p"))
         arrays = [f"const std::array<double, {layout.arg_size(a)}> &{a}" for a in k.args]
         arrays.append(f"const std::array<double, {n_par}> &p = default_params")
@@ -268,7 +268,7 @@ def emit_cpp(layout: Layout) -> dict[str, str]:
          f"{_initializer([_c_string(p) for p in layout.parameters])};",
          f"const std::array<double, {n_par}> default_params = "
          f"{_initializer([nan if v != v else double(v) for v in layout.defaults])};", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         c += [f"void {k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
     c += [f"}}  // namespace {s}", ""]
     return {f"{s}.hpp": "\n".join(h), f"{s}.cpp": "\n".join(c)}

@@ -38,7 +38,8 @@ from ._fixed import lock_joint, merge_fixed
 from ._joint import Frame, Joint, JointLimits
 from ._lie import spatial_to_body
 from ._mimic import Mimic, follow_locks, resolve
-from ._validate import check_defaults, check_mass_inertia, check_parents, describe, matrix, symbol, to_expr, validate
+from ._validate import (check_defaults, check_mass_inertia, check_model, check_parents, describe_value, matrix, symbol,
+                        to_expr)
 
 __all__ = ["JOINT_TYPES", "Drive", "Frame", "Joint", "JointLimits", "Mimic", "Robot", "spatial_to_body", "symbol", "to_expr"]
 
@@ -124,7 +125,7 @@ class Robot:
             raise ModelError(f"expected 3 values, got {len(gravity)}", where="gravity")
         gravity = tuple(to_expr(g, where=f"gravity[{k}]") for k, g in enumerate(gravity))
         clean = check_defaults(defaults or {})
-        validate(joints, frames, gravity, end_effectors, clean, base)
+        check_model(joints, frames, gravity, end_effectors, clean, base)
         if base_inertia is not None:
             check_mass_inertia(base_inertia, {symbol(k): v for k, v in clean.items()}, "base_inertia")
         joints = _resolve_mimics(joints)
@@ -458,7 +459,7 @@ def _normalize_base(floating_base, base_inertia) -> tuple[bool, sp.ImmutableMatr
     """``(floating_base, base_inertia)`` checked: a bool, and a 6x6 matrix (zero if not given) for a floating
     base, ``None`` for a fixed one."""
     if not isinstance(floating_base, (bool, np.bool_)):
-        raise ModelError(f"expected true or false, got {describe(floating_base)}", where="floating_base")
+        raise ModelError(f"expected true or false, got {describe_value(floating_base)}", where="floating_base")
     if not floating_base:
         if base_inertia is not None:
             raise ModelError("a fixed base has no inertia of its own; give floating_base=True or leave it out",

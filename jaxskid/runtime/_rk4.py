@@ -87,7 +87,7 @@ def _available(dyn) -> bool:
     return not dyn.floating_base and "inverse_dynamics_vjp" in dyn.quantities
 
 
-def _kernels(dyn, batched: bool):
+def _stage_functions(dyn, batched: bool):
     """``(qdd, stage_backward)``: forward dynamics with its forward-mode rule (for gradients of the gradient)
     and the backward step of forward dynamics in JAX."""
     qdd = accelerations(dyn, batched, "forward")
@@ -102,7 +102,7 @@ def held_torque_rk4(dyn, batched: bool) -> Callable | None:
     if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
-    qdd, stage_backward = _kernels(dyn, batched)
+    qdd, stage_backward = _stage_functions(dyn, batched)
 
     def recursion(qs, qds, accs, p, h, gq, gqd):
         yq, yqd, lams, pbar, hbar = _recursion(stage_backward, n, qs, qds, accs, None, p, h, gq, gqd)
@@ -136,7 +136,7 @@ def feedback_rk4(dyn, batched: bool) -> Callable | None:
     if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
-    qdd, stage_backward = _kernels(dyn, batched)
+    qdd, stage_backward = _stage_functions(dyn, batched)
 
     def recursion(qs, qds, accs, ks, p, h, gq, gqd):
         yq, yqd, lams, pbar, hbar = _recursion(stage_backward, n, qs, qds, accs, ks, p, h, gq, gqd)
