@@ -102,6 +102,10 @@ class Quantity:
         forwards to ``call`` (which accepts every form the signature allows)."""
 
         def quantity(*args, **kwargs):
+            if any(a in kwargs for a in self.args):  # state arguments by keyword: put in their places
+                bound = self.signature.bind(*args, **kwargs).arguments
+                args = tuple(bound[a] for a in self.args)
+                kwargs = {k: v for k, v in bound.items() if k not in self.args}
             return call(*args, **kwargs)
 
         quantity.__name__ = quantity.__qualname__ = self.name
