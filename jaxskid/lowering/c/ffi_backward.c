@@ -55,11 +55,32 @@ static void backward(const T *q, const T *qd, const T *a, const T *g, const T *p
     for (int i = N; i < NO; i++) out[i] = -out[i];
 }
 
+/* One call of a backward handler: its inputs (at most 8) with their strides between states (0: one state's,
+   shared by the batch), its result and the number of states. */
 typedef struct {
-    const XLA_FFI_Buffer *in[5];
+    const XLA_FFI_Buffer *in[8];
     XLA_FFI_Buffer *res;
-    int64_t stride[5], batch;
+    int64_t stride[8], batch;
 } backward_job;
+
+/* A backward handler: n_in inputs of one state's sizes `size`, one result of n_out entries per state, the
+   batch in chunks of BACKWARD_CHUNK states that `chunk` computes on the pool. */
+static XLA_FFI_Error *backward_call(XLA_FFI_CallFrame *call, int n_in, const int64_t *size, int64_t n_out,
+                                    void (*chunk)(void *, int64_t, int))
+{
+    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != n_in || call->rets.size != 1)
+        return NULL;
+    backward_job j;
+    for (int i = 0; i < n_in; i++) {
+        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
+        j.stride[i] = numel(j.in[i]) == size[i] ? 0 : size[i];  /* one state's: shared by the batch */
+    }
+    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
+    j.batch = numel(j.res) / n_out;
+    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
+    parallel_for(call, pool_threads(call, chunks), chunks, chunk, &j);
+    return NULL;
+}
 
 static const int64_t backward_size[5] = {NQ, N, N, N, NP};
 
@@ -86,17 +107,6 @@ static void backward_chunk(void *ctx, int64_t c, int slot)
 #if JAXSKID_PART == 0  /* the handlers: in the first part of a split build */
 XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
 {
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
-        return NULL;
-    backward_job j;
-    for (int i = 0; i < 5; i++) {
-        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        j.stride[i] = numel(j.in[i]) == backward_size[i] ? 0 : backward_size[i];  /* one state's: shared by the batch */
-    }
-    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    j.batch = numel(j.res) / NO;
-    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
-    parallel_for(call, pool_threads(call, chunks), chunks, backward_chunk, &j);
-    return NULL;
+    return backward_call(call, 5, backward_size, NO, backward_chunk);
 }
 #endif

@@ -62,12 +62,6 @@ static void rk4fb_backward(const T *q, const T *qd, const T *a, const T *kk, con
     }
 }
 
-typedef struct {
-    const XLA_FFI_Buffer *in[8];
-    XLA_FFI_Buffer *res;
-    int64_t stride[8], batch;
-} rk4_job;
-
 static const int64_t rk4_size[7] = {4 * N, 4 * N, 4 * N, NP, 1, N, N};
 
 static const int64_t rk4fb_size[8] = {4 * N, 4 * N, 4 * N, 8 * N * N, NP, 1, N, N};
@@ -75,7 +69,7 @@ static const int64_t rk4fb_size[8] = {4 * N, 4 * N, 4 * N, 8 * N * N, NP, 1, N, 
 static void rk4fb_chunk(void *ctx, int64_t c, int slot)
 {
     (void)slot;
-    const rk4_job *j = (const rk4_job *)ctx;
+    const backward_job *j = (const backward_job *)ctx;
     const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
     T q[4 * N], qd[4 * N], a[4 * N], kk[8 * N * N], p[NP1], h[1], gq[N], gqd[N], out[NF];
     T *w[8] = {q, qd, a, kk, p, h, gq, gqd};
@@ -94,25 +88,14 @@ static void rk4fb_chunk(void *ctx, int64_t c, int slot)
 #if JAXSKID_PART == 0  /* the handlers: in the first part of a split build */
 XLA_FFI_Error *jaxskid_rk4fb_vjp(XLA_FFI_CallFrame *call)
 {
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 8 || call->rets.size != 1)
-        return NULL;
-    rk4_job j;
-    for (int i = 0; i < 8; i++) {
-        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        j.stride[i] = numel(j.in[i]) == rk4fb_size[i] ? 0 : rk4fb_size[i];
-    }
-    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    j.batch = numel(j.res) / NF;
-    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
-    parallel_for(call, pool_threads(call, chunks), chunks, rk4fb_chunk, &j);
-    return NULL;
+    return backward_call(call, 8, rk4fb_size, NF, rk4fb_chunk);
 }
 #endif
 
 static void rk4_chunk(void *ctx, int64_t c, int slot)
 {
     (void)slot;
-    const rk4_job *j = (const rk4_job *)ctx;
+    const backward_job *j = (const backward_job *)ctx;
     const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
     T q[4 * N], qd[4 * N], a[4 * N], p[NP1], h[1], gq[N], gqd[N], out[NR];
     T *w[7] = {q, qd, a, p, h, gq, gqd};
@@ -131,18 +114,7 @@ static void rk4_chunk(void *ctx, int64_t c, int slot)
 #if JAXSKID_PART == 0  /* the handlers: in the first part of a split build */
 XLA_FFI_Error *jaxskid_rk4_vjp(XLA_FFI_CallFrame *call)
 {
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 7 || call->rets.size != 1)
-        return NULL;
-    rk4_job j;
-    for (int i = 0; i < 7; i++) {
-        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        j.stride[i] = numel(j.in[i]) == rk4_size[i] ? 0 : rk4_size[i];  /* one state's: shared by the batch */
-    }
-    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    j.batch = numel(j.res) / NR;
-    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
-    parallel_for(call, pool_threads(call, chunks), chunks, rk4_chunk, &j);
-    return NULL;
+    return backward_call(call, 7, rk4_size, NR, rk4_chunk);
 }
 #endif
 #endif
