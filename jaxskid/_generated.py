@@ -119,7 +119,9 @@ class GeneratedQuantity:
 
     name: str
     args: tuple[str, ...]
+    """The state arguments, in order (``p`` follows)."""
     shape: tuple[int, ...]
+    """One state's result."""
     equation: str
     doc: str
     function: Callable

@@ -51,22 +51,20 @@ class VectorPrinter(CPrinter):
             raise NoVectorForm(type(expr).__name__)
         return super()._print(expr, **kwargs)
 
-    def _print_sin(self, expr):
-        return f"@V@sin({self._print(expr.args[0])})"
+    def _lane_wise(self, expr) -> str:
+        return f"@V@{type(expr).__name__}({self._print(expr.args[0])})"
 
-    def _print_cos(self, expr):
-        return f"@V@cos({self._print(expr.args[0])})"
+    _print_sin = _print_cos = _print_sign = _lane_wise
 
-    def _print_sign(self, expr):
-        return f"@V@sign({self._print(expr.args[0])})"
+
+_VECTOR_FORMS = (sp.Symbol, sp.Number, sp.NumberSymbol, sp.Add, sp.Mul, sp.sin, sp.cos)
 
 
 def _has_vector_form(e) -> bool:
-    if e.is_Symbol or e.is_Number or e.is_NumberSymbol or e.is_Add or e.is_Mul or isinstance(e, (sp.sin, sp.cos)):
-        return True
-    if e.is_Pow:  # printed as a product (NumberTweaks); other powers call sqrt or pow
-        return e.exp.is_Integer and 0 < abs(int(e.exp)) <= 8
-    return isinstance(e, sp.sign) and e.args[0].is_Symbol
+    """Sums, products, numbers, sine and cosine; powers of a small integer exponent (printed as products by
+    NumberTweaks; the others call sqrt or pow); the sign of a variable."""
+    small_power = e.is_Pow and e.exp.is_Integer and 0 < abs(int(e.exp)) <= 8
+    return isinstance(e, _VECTOR_FORMS) or bool(small_power) or (isinstance(e, sp.sign) and e.args[0].is_Symbol)
 
 
 def vector_kernel(k: Program, printer: VectorPrinter) -> VectorKernel | None:

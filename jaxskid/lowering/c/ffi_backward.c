@@ -63,6 +63,23 @@ typedef struct {
     int64_t stride[8], batch;
 } backward_job;
 
+/* Lane l of W states from b of the job's n_in inputs (one state's sizes `size`) into w (a last partial group
+   repeats its last state), and the W results from out. */
+static void load_lanes(const backward_job *j, int n_in, const int64_t *size, T *const *w, int64_t b, int64_t to)
+{
+    for (int l = 0; l < W; l++) {
+        const int64_t s = b + l < to ? b + l : to - 1;
+        for (int i = 0; i < n_in; i++)
+            for (int64_t k = 0; k < size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
+    }
+}
+
+static void store_lanes(const backward_job *j, const T *out, int64_t n_out, int64_t b, int64_t to)
+{
+    for (int l = 0; l < W && b + l < to; l++)
+        for (int k = 0; k < n_out; k++) store(j->res, (b + l) * n_out + k, LANE(out[k], l));
+}
+
 /* A backward handler: n_in inputs of one state's sizes `size`, one result of n_out entries per state, the
    batch in chunks of BACKWARD_CHUNK states that `chunk` computes on the pool. */
 static XLA_FFI_Error *backward_call(XLA_FFI_CallFrame *call, int n_in, const int64_t *size, int64_t n_out,
@@ -93,14 +110,9 @@ static void backward_chunk(void *ctx, int64_t c, int slot)
     T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
     T *w[5] = {q, qd, a, g, p};
     for (int64_t b = from; b < to; b += W) {
-        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
-            const int64_t s = b + l < to ? b + l : to - 1;
-            for (int i = 0; i < 5; i++)
-                for (int64_t k = 0; k < backward_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
-        }
+        load_lanes(j, 5, backward_size, w, b, to);
         backward(q, qd, a, g, p, out);
-        for (int l = 0; l < W && b + l < to; l++)
-            for (int k = 0; k < NO; k++) store(j->res, (b + l) * NO + k, LANE(out[k], l));
+        store_lanes(j, out, NO, b, to);
     }
 }
 

@@ -74,14 +74,9 @@ static void rk4fb_chunk(void *ctx, int64_t c, int slot)
     T q[4 * N], qd[4 * N], a[4 * N], kk[8 * N * N], p[NP1], h[1], gq[N], gqd[N], out[NF];
     T *w[8] = {q, qd, a, kk, p, h, gq, gqd};
     for (int64_t b = from; b < to; b += W) {
-        for (int l = 0; l < W; l++) {
-            const int64_t s = b + l < to ? b + l : to - 1;
-            for (int i = 0; i < 8; i++)
-                for (int64_t k = 0; k < rk4fb_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
-        }
+        load_lanes(j, 8, rk4fb_size, w, b, to);
         rk4fb_backward(q, qd, a, kk, p, h[0], gq, gqd, out);
-        for (int l = 0; l < W && b + l < to; l++)
-            for (int k = 0; k < NF; k++) store(j->res, (b + l) * NF + k, LANE(out[k], l));
+        store_lanes(j, out, NF, b, to);
     }
 }
 
@@ -100,14 +95,9 @@ static void rk4_chunk(void *ctx, int64_t c, int slot)
     T q[4 * N], qd[4 * N], a[4 * N], p[NP1], h[1], gq[N], gqd[N], out[NR];
     T *w[7] = {q, qd, a, p, h, gq, gqd};
     for (int64_t b = from; b < to; b += W) {
-        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
-            const int64_t s = b + l < to ? b + l : to - 1;
-            for (int i = 0; i < 7; i++)
-                for (int64_t k = 0; k < rk4_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
-        }
+        load_lanes(j, 7, rk4_size, w, b, to);
         rk4_backward(q, qd, a, p, h[0], gq, gqd, out);
-        for (int l = 0; l < W && b + l < to; l++)
-            for (int k = 0; k < NR; k++) store(j->res, (b + l) * NR + k, LANE(out[k], l));
+        store_lanes(j, out, NR, b, to);
     }
 }
 
