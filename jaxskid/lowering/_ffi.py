@@ -16,9 +16,11 @@ for a result of n^2 or n * 10 n entries, into select chains whose work grows wit
   L D L^T solve (:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation);
 * ``jaxskid_rk4_vjp``, the backward pass of a Runge-Kutta step built on it (:mod:`._ffi_rk4`).
 
-Long functions are split into pieces (:func:`_chunked`): GCC's register allocation is quadratic in a
-function's length. Handlers take float32 or float64 and compute in double. Nothing here knows SymPy: a
-build takes C text.
+The handlers' C is in the templates of ``jaxskid/lowering/c/`` (:mod:`._templates`); the kernels over
+vectors of states come printed from the program representation, as statements
+(:class:`jaxskid._generated.VectorKernel`). Long functions are split into pieces (:func:`_chunked`): GCC's
+register allocation is quadratic in a function's length. Handlers take float32 or float64 and compute in
+double. Nothing here knows SymPy: a build takes the C of a :class:`jaxskid._generated.NativeSource`.
 """
 
 from __future__ import annotations

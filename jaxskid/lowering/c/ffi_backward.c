@@ -3,7 +3,7 @@
 #define NO (N + NV)
 #define BACKWARD_CHUNK @BACKWARD_CHUNK@
 
-#ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), the functions rewritten below */
+#ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), with the vector functions below */
 #define W LANES
 typedef double T __attribute__((vector_size(8 * LANES)));
 #define LANE(x, l) ((x)[l])
