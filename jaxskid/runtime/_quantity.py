@@ -36,8 +36,8 @@ _RESULT_UNITS = {
     "inverse_dynamics": _TORQUE,
     "external_torques": _TORQUE,
     "forward_dynamics": "rad/s^2 or m/s^2",
-    "forward_kinematics": "4 x 4 homogeneous poses, positions in m",
-    "ee_pose": "4 x 4 homogeneous poses, positions in m",
+    "forward_kinematics": "positions in m",
+    "ee_pose": "homogeneous poses, positions in m",
     "kinetic_energy": "J",
     "potential_energy": "J",
     "momentum": "kg m^2/s per revolute joint, kg m/s per prismatic joint",
@@ -92,7 +92,8 @@ class Quantity:
         lines.append("    out: an earlier result of the same shape and dtype, whose memory the result takes (it is "
                      "donated: deleted after the call; use the returned array). Its entries are not read.")
         unit = _RESULT_UNITS.get(self.name)
-        lines += ["", f"Returns: {_shape(self.shape)} per state{', in ' + unit if unit else ''}."]
+        result = "a dict frame name -> (4, 4) pose" if self.name == "forward_kinematics" else _shape(self.shape)
+        lines += ["", f"Returns: {result} per state{', in ' + unit if unit else ''}."]
         if not unit:
             lines.append("Units: SI (m, kg, s, rad), as the arguments'.")
         return "\n".join(lines)
