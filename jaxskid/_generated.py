@@ -12,6 +12,7 @@ Nothing here imports JAX or SymPy: the codegen, lowering and runtime stages all 
 from __future__ import annotations
 
 import functools
+import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,15 +70,17 @@ class NativeSource:
         """Plain data, as a generated module writes it (``NATIVE_C``)."""
         return {"stem": self.stem, "header": self.header, "source": self.source, "backward": self.backward,
                 "kernels": tuple(tuple(k) for k in self.kernels),
-                "vectors": {k: None if v is None else (v.args, tuple(map(tuple, v.statements)), v.zeros)
-                            for k, v in self.vectors.items()}}
+                # one JSON string: a literal of many small tuples takes Python long to compile when the module loads
+                "vectors": json.dumps({k: None if v is None else (v.args, v.statements, v.zeros)
+                                       for k, v in self.vectors.items()}, separators=(",", ":"))}
 
     @classmethod
     def from_dict(cls, d: Mapping) -> NativeSource:
         return cls(d["stem"], d["header"], d["source"], bool(d["backward"]),
                    tuple(NativeKernel(k[0], tuple(k[1]), tuple(k[2]), k[3], k[4]) for k in d["kernels"]),
-                   {k: None if v is None else VectorKernel(v[0], tuple(Statement(*s) for s in v[1]), v[2])
-                    for k, v in d["vectors"].items()})
+                   {k: None if v is None else VectorKernel(tuple(v[0]), tuple(Statement(a, b, c, tuple(r))
+                                                                                for a, b, c, r in v[1]), tuple(v[2]))
+                    for k, v in json.loads(d["vectors"]).items()})
 
     @property
     def quantities(self) -> tuple[str, ...]:
