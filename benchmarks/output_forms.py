@@ -13,7 +13,7 @@ it, and timed interleaved (medians per state). Forms:
   generates).
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
-:mod:`jaxskid._kernels` (what jaxskid's programs use on CPU; on other platforms they call XLA's), forced
+:mod:`jaxskid._fused` (what jaxskid's programs use on CPU; on other platforms they call XLA's), forced
 here on every platform. Pinocchio's ``crba`` (or ``rnea``) per call from
 Python is printed beside them (``computeCoriolisMatrix``, ``aba`` for the other quantities). For
 ``forward_dynamics`` the pivots' reciprocals are also timed as plain divisions (``/ division``).
@@ -37,7 +37,7 @@ import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
 from jaxskid.runtime._dynamics import compiler_options  # noqa: E402
-from jaxskid._kernels import SOURCE as HELPERS  # noqa: E402
+from jaxskid._fused import SOURCE as HELPERS  # noqa: E402
 from jaxskid.codegen import Layout  # noqa: E402
 from jaxskid.codegen._jax import JaxPrinter, function_source, jax_names  # noqa: E402
 import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
@@ -52,7 +52,7 @@ def variants(eqs, name: str) -> dict[str, tuple[str, bool, bool]]:
     """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, whether to spread, and
     whether reciprocals are divisions instead of Newton's iteration."""
     layout = Layout(eqs, (name,), jax_names)
-    (kernel,) = layout.kernels
+    (kernel,) = layout.programs
     generated = function_source(layout, kernel, JaxPrinter())
     body = generated[: generated.index("\n\n\n@jax.custom_jvp")] + "\n"
     head = body[: body.index("    _z = jnp.zeros(")]

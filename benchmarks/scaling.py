@@ -197,8 +197,8 @@ def force_fused_trig() -> None:
     from jaxskid.codegen import _jax
 
     choice = "    if jax.default_backend() == \"cpu\":\n        return _sincos(x)\n"
-    assert choice in _jax.KERNELS_SOURCE, "jaxskid/_kernels.py changed: update force_fused_trig"
-    _jax.KERNELS_SOURCE = _jax.KERNELS_SOURCE.replace(choice, "    return _sincos(x)\n")
+    assert choice in _jax.FUSED_SOURCE, "jaxskid/_fused.py changed: update force_fused_trig"
+    _jax.FUSED_SOURCE = _jax.FUSED_SOURCE.replace(choice, "    return _sincos(x)\n")
 
 
 def empty_compilation_cache() -> None:

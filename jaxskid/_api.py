@@ -16,7 +16,7 @@ from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
 from .lowering._cache import entry_path, read_entry, request_key, store_entry
 from .lowering._xla_cache import default_compilation_cache
-from .lowering._ffi_build import ffi_library, ffi_library_soon
+from .lowering._ffi_build import NativeLibrary, ffi_library_soon
 from .lowering._extension import Method
 from .lowering._native import build, default_backend
 from .description._end_effectors import with_end_effectors
@@ -138,25 +138,13 @@ def lower(
             if cache and native_enabled():
                 # the C compiler works on each library while the next and the JAX module are printed; the
                 # one of the quantities that only serve the requested ones' derivatives at a low priority
-                later = not {k[0] for k in library["kernels"]} & set(asked)
+                later = not set(library.quantities) & set(asked)
                 ffi_library_soon(library, Path(cache_dir or default_cache_dir()) / "native", later)
         module = module_source(Layout(eqs, names, jax_names)) + native_block(native)
         found = store_entry(path, module, key)
-    namespace, source = found
     native_root = Path(cache_dir or default_cache_dir()) / "native" if cache else None
-    return Dynamics(namespace, source, path, catalogue=tuple(QUANTITIES),
-                    native=functools.partial(_native_library, root=native_root),
+    return Dynamics(found, catalogue=tuple(QUANTITIES), native=tuple(NativeLibrary(s, native_root) for s in found.native),
                     inertia=functools.partial(body_standard_map, robot), checks=checks)
-
-
-def _native_library(native: Mapping[str, str], root: Path | None) -> Path:
-    """Build a native library (one of :func:`~jaxskid.codegen._c.native_sources`; :mod:`jaxskid.lowering._ffi`)
-    in ``root``, or in a temporary folder when the cache is off."""
-    if root is None:
-        import tempfile
-
-        root = Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
-    return ffi_library(native, root)
 
 
 def module_key(robot: Robot, names: Sequence[str], options: Options | None = None) -> str:
@@ -198,13 +186,13 @@ def compile_native(
     files = emit_c(layout)
     header, source = files[f"{layout.stem}.h"], files[f"{layout.stem}.c"]
     symbols = {n: f"{layout.stem}_{n}" for n in names}
-    arity = {symbols[k.name]: len(k.args) + 2 for k in layout.kernels}  # the state arguments, p and out
+    arity = {symbols[k.name]: len(k.args) + 2 for k in layout.programs}  # the state arguments, p and out
     root = Path(cache_dir) if cache_dir is not None else default_cache_dir() / "native"
     backend = backend or default_backend()
     metadata = layout.metadata()
     methods = ()
     if backend == "capi":
-        methods = tuple(_method(k, symbols[k.name], layout, metadata["quantities"][k.name]) for k in layout.kernels)
+        methods = tuple(_method(k, symbols[k.name], layout, metadata["quantities"][k.name]) for k in layout.programs)
     library = build(layout.stem, header, source, arity, backend, root, methods)
     return NativeDynamics(metadata, {n: library.functions[c] for n, c in symbols.items()}, ffi=library.ffi,
                           path=library.path, source=source, catalogue=tuple(QUANTITIES), backend=backend,

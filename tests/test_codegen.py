@@ -141,7 +141,7 @@ def _driver(case, cxx: bool) -> str:
                  "template <std::size_t N> static std::array<double, N> read()", "{", "    std::array<double, N> x{};",
                  "    for (auto &v : x) { std::cin >> v; }", "    return x;", "}", "", "int main()", "{"]
     layout = codegen.Layout(case.eqs, tuple(case.names))
-    for k in layout.kernels:
+    for k in layout.programs:
         sizes = {a: layout.arg_size(a) for a in (*k.args, "p")}
         lines.append(f"    for (int s = 0; s < {N_STATES}; ++s) {{")
         if cxx:

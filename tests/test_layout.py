@@ -72,3 +72,87 @@ def test_public_names_are_listed_once_for_import_and_once_for_type_checkers():
     assert static == jaxskid._LAZY
     for name in jaxskid.__all__:
         assert getattr(jaxskid, name) is not None, name
+
+
+
+def module_name(path: Path, root: Path = PACKAGE) -> str:
+    """The dotted name of the module at ``path`` in the package whose folder is ``root``."""
+    parts = list(path.relative_to(root.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported_modules(path: Path, known: set[str], root: Path = PACKAGE) -> set[str]:
+    """The modules of ``known`` that ``path`` imports anywhere in it: at the top, inside functions and under
+    ``TYPE_CHECKING``. ``from package import name`` imports the submodule ``package.name`` where there is
+    one, else the package."""
+    name = module_name(path, root)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join([*anchor, *([base] if base else [])])
+            for alias in node.names:
+                found.add(f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else base)
+    return {m for m in found if m in known and m != name}
+
+
+def import_cycles(root: Path = PACKAGE) -> list[list[str]]:
+    """Every cycle of the import graph of the modules under ``root``: the strongly connected components of
+    two or more modules (Tarjan's algorithm), each as its modules, sorted."""
+    paths = {module_name(p, root): p for p in sorted(root.rglob("*.py"))}
+    graph = {m: sorted(imported_modules(p, set(paths), root)) for m, p in paths.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    cycles = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return cycles
+
+
+def test_no_import_cycle():
+    """No module imports, directly or through others, a module that imports it back: imports inside
+    functions count, since they only hide a cycle."""
+    cycles = import_cycles()
+    assert not cycles, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in cycles)
+
+
+def test_the_cycle_finder_sees_imports_inside_functions(tmp_path):
+    """The check itself, on packages made here: an import inside a function that closes a loop through a third
+    module is a cycle, relative and absolute imports alike; the same imports without the loop are none."""
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from .sub import b\n")
+    (pkg / "sub" / "b.py").write_text("import pkg.c\n")
+    (pkg / "c.py").write_text("def f():\n    from .a import x\n    return x\n")
+    assert import_cycles(pkg) == [["pkg.a", "pkg.c", "pkg.sub.b"]]
+    (pkg / "c.py").write_text("def f():\n    return 1\n")
+    assert import_cycles(pkg) == []

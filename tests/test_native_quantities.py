@@ -347,20 +347,21 @@ def test_pieces_built_as_several_translation_units(monkeypatch, tmp_path):
 
 
 def test_split_glue_defines_each_piece_once():
-    """Each piece is defined in exactly one part, declared in the others, and only part 0 has handlers."""
+    """Each piece is defined in exactly one part, declared in the others, and only part 0 has handlers (the
+    templates guard them)."""
+    from jaxskid.lowering._ffi import QUANTITY, Piece
     from jaxskid.lowering._ffi_build import split
 
-    glue = ("static __attribute__((noinline)) void f_0(const V *q, V *w)\n{\n    w[0] = q[0];\n}\n"
-            "static __attribute__((noinline)) void f_1(const V *q, V *w)\n{\n    w[1] = q[1];\n}\n"
-            "static __attribute__((noinline)) void f_2(const V *q, V *w)\n{\n    w[2] = q[2] + q[0];\n}\n"
-            "XLA_FFI_Error *jaxskid_f(XLA_FFI_CallFrame *call)\n{\n    return NULL;\n}\n")
+    pieces = [Piece(f"f_{k}", "const V *q, V *w", f"{{\n    w[{k}] = q[{k}];\n}}\n") for k in range(3)]
+    glue = [pieces[0], "\n", pieces[1], "\n", pieces[2], QUANTITY]
     text, parts = split(glue, 2)
     assert parts == 2
-    assert split(glue, 1) == (glue, 1)
+    assert split(glue, 1) == ("".join(p.text() if isinstance(p, Piece) else p for p in glue), 1)
     for name in ("f_0", "f_1", "f_2"):
         assert text.count(f"PIECE void {name}(const V *q, V *w)\n{{") == 1
         assert text.count(f"PIECE void {name}(const V *q, V *w);") == 1
-    assert "#if JAXSKID_PART == 0\nXLA_FFI_Error *jaxskid_f" in text
+    handler = text.index("XLA_FFI_Error *jaxskid_@NAME@(")
+    assert text.rfind("#if JAXSKID_PART == 0", 0, handler) > text.rfind("#endif", 0, handler)
 
 
 def test_the_switch_is_read_when_a_dynamics_is_made(monkeypatch):
@@ -377,13 +378,16 @@ def test_the_switch_is_read_when_a_dynamics_is_made(monkeypatch):
 
 
 _CHUNKED = """
+from jaxskid._generated import Statement, VectorKernel
 from jaxskid.lowering._ffi import LONG, _chunked
-reads = ", ".join(f"in{k}" for k in range(40))
-lines = [f"    const double a{k} = x[{k}];" for k in range(40)]
-lines += [f"    const double b{k} = a{k % 40} * a{(7 * k) % 40} + {k}.0;" for k in range(LONG + 200)]
-lines += [f"    out[{k}] = b{k} + a{(3 * k) % 40};" for k in range(LONG + 200)]
+lines = [Statement("input", f"a{k}", f"x[{k}]", ()) for k in range(40)]
+lines += [Statement("define", f"b{k}", f"a{k % 40} * a{(7 * k) % 40} + {k}.0", tuple(sorted({f"a{k % 40}", f"a{(7 * k) % 40}"})))
+          for k in range(LONG + 200)]
+lines += [Statement("output", str(k), f"b{k} + a{(3 * k) % 40}", tuple(sorted({f"b{k}", f"a{(3 * k) % 40}"})))
+          for k in range(LONG + 200)]
 import hashlib
-source = _chunked("f", "const double *x, double *out", "\\n".join(lines) + "\\n", "double")
+pieces = _chunked("f", VectorKernel(("x",), tuple(lines), ()), "double")
+source = "".join(p if isinstance(p, str) else p.text() for p in pieces)
 print(hashlib.sha256(source.encode()).hexdigest())
 """
 

@@ -1,4 +1,4 @@
-"""The fused sine and cosine (jaxskid._kernels: the same code is pasted into every generated module),
+"""The fused sine and cosine (jaxskid._fused: the same code is pasted into every generated module),
 against mpmath at 40 digits."""
 
 import jax
@@ -7,16 +7,16 @@ import mpmath
 import numpy as np
 import pytest
 
-from jaxskid import _kernels
+from jaxskid import _fused
 
 
 @pytest.fixture(scope="module", params=["imported", "pasted"])
 def trig(request):
     """The functions as the runtime imports them, and as the text every generated module carries."""
     if request.param == "imported":
-        return _kernels.sin, _kernels.cos
+        return _fused.sin, _fused.cos
     ns = {"jax": jax, "jnp": jnp}
-    exec(_kernels.SOURCE, ns)  # noqa: S102 - the exact text every generated module carries
+    exec(_fused.SOURCE, ns)  # noqa: S102 - the exact text every generated module carries
     return ns["_sin"], ns["_cos"]
 
 
@@ -71,13 +71,13 @@ def test_derivatives_are_exact(trig):
 def test_source_defines_what_the_module_exports():
     """SOURCE is the module's own code: executed alone, it defines every helper generated code calls."""
     ns = {"jax": jax, "jnp": jnp}
-    exec(_kernels.SOURCE, ns)  # noqa: S102
+    exec(_fused.SOURCE, ns)  # noqa: S102
     for name in ("_sin", "_cos", "_sincos", "_recip", "_spread", "_same", "_plain_jvp"):
         assert name in ns, name
     x = jnp.asarray(np.random.default_rng(3).uniform(0.1, 10.0, 100))
-    np.testing.assert_array_equal(np.asarray(ns["_recip"](x)), np.asarray(_kernels.recip(x)))
+    np.testing.assert_array_equal(np.asarray(ns["_recip"](x)), np.asarray(_fused.recip(x)))
     ref = 1.0 / np.asarray(x)
-    assert np.all(np.abs(np.asarray(_kernels.recip(x)) - ref) <= np.spacing(ref))  # within one ulp
+    assert np.all(np.abs(np.asarray(_fused.recip(x)) - ref) <= np.spacing(ref))  # within one ulp
 
 
 def test_off_cpu_programs_use_xla_sine_and_cosine(monkeypatch):
@@ -86,7 +86,7 @@ def test_off_cpu_programs_use_xla_sine_and_cosine(monkeypatch):
     exported StableHLO of each platform, as a machine whose default backend is a GPU lowers it."""
     monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
     spec = jax.ShapeDtypeStruct((4,), jnp.float64)
-    for fn, op in ((_kernels.sin, "stablehlo.sine"), (_kernels.cos, "stablehlo.cosine")):
+    for fn, op in ((_fused.sin, "stablehlo.sine"), (_fused.cos, "stablehlo.cosine")):
         for platform, xla in (("cuda", True), ("cpu", False)):
             text = jax.export.export(jax.jit(jax.vmap(fn)), platforms=[platform])(spec).mlir_module()
             assert (op in text) is xla, (fn, platform)

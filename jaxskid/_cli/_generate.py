@@ -49,7 +49,7 @@ def generate_files(model, targets, wanted, out, *, options, style, check, force,
     if style != jaxskid.codegen.CodeStyle():
         click.echo(f"style: shapes={style.shapes}, landscape={style.landscape}, project={style.project}")
     click.echo(f"{'quantity':<22} {'arguments':<22} {'shape':<12} {'operations':>10}")
-    for k in layout.kernels:  # the shapes of the generated files (Skidy's columns with style.shapes)
+    for k in layout.programs:  # the shapes of the generated files (Skidy's columns with style.shapes)
         shape = "(" + ", ".join(map(str, k.shape)) + ("," if len(k.shape) == 1 else "") + ")"
         click.echo(f"{k.name:<22} {', '.join((*k.args, 'p')):<22} {shape:<12} {eqs.operation_count([k.name]):>10}")
     values, drawn = check_values(model)

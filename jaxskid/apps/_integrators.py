@@ -10,11 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
 
 from .._errors import RequestError
+from .._tableau import RK4_TABLEAU, ExplicitTableau
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,8 @@ class RK4:
     """
 
     order = 4
+    tableau: ClassVar[ExplicitTableau] = RK4_TABLEAU
+    """The nodes and weights; the runtime's one-call steps (:mod:`jaxskid.runtime._rk4`) serve this tableau."""
 
     def step(self, f: Callable, t, y, dt):
         def axpy(a, dy, base):
@@ -65,9 +69,15 @@ class RK4:
 
         zero = jax.tree.map(jnp.zeros_like, y)
         dtype = jnp.result_type(dt)
-        cb = (jnp.asarray([0.0, 0.5, 0.5, 1.0], dtype), jnp.asarray([1 / 6, 1 / 3, 1 / 3, 1 / 6], dtype))
+        cb = (jnp.asarray(self.tableau.c, dtype), jnp.asarray(self.tableau.b, dtype))
         (_, incr), aux = jax.lax.scan(stage, (zero, zero), cb)
         return axpy(dt, incr, y), jax.tree.map(lambda a: a[0], aux)
+
+
+def classical_rk4(integrator) -> bool:
+    """Whether ``integrator`` takes :class:`RK4`'s own step on the classical tableau: the runtime's one-call
+    steps (:mod:`jaxskid.runtime._rk4`), which run that tableau's stages, then serve it."""
+    return isinstance(integrator, RK4) and type(integrator).step is RK4.step and integrator.tableau == RK4_TABLEAU
 
 
 def fixed_step(integrator):

@@ -38,7 +38,7 @@ from ..runtime._free_flyer import normalize
 from ..runtime._rk4 import feedback_rk4, held_torque_rk4, hoist
 from ..runtime._constrained import Baumgarte
 from ._field import as_controls, constraint_forces, dynamics_field, with_input
-from ._integrators import RK4, fixed_step
+from ._integrators import RK4, classical_rk4, fixed_step
 from ._loop import saved_loop
 from ._saving import Checkpoint, SaveAt
 
@@ -90,7 +90,7 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
     rows = controller is None and u is not None  # the torques are the rows of u
     record = not rows and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
     # open-loop torques on a fixed base: an RK4 step whose backward pass is one native call
-    one_call = constraints is None and autodiff == "reverse" and type(integrator) is RK4
+    one_call = constraints is None and autodiff == "reverse" and classical_rk4(integrator)
     fused = held_torque_rk4(dyn, batched) if rows and one_call else None
     # a stateless feedback law: its step's backward pass is one native call too
     stateless = controller is not None and u is None and not jax.tree.leaves(z0)
@@ -277,7 +277,7 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
     dyn, controller, integrator = static[:3]
     if health is None:
         health = isinstance(controller, GroundContact)
-    if not health or type(integrator) is not RK4 or not top_level((traj.x, dt)) or np.ndim(dt) or \
+    if not health or not classical_rk4(integrator) or not top_level((traj.x, dt)) or np.ndim(dt) or \
             (params is not None and np.ndim(dyn.param_vector(params)) > 1):
         return traj
 

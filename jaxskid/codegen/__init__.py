@@ -13,7 +13,7 @@ One entry point, :func:`generate`, and one emitter per target (:data:`TARGETS`):
 ``latex``  ``<stem>.tex``: the equations as a document
 =========  ======================================================================
 
-Every target prints the same program representation (:class:`Layout`, :class:`Kernel`: the pruned
+Every target prints the same program representation (:class:`Layout`, :class:`Program`: the pruned
 straight-line program of each quantity) with its own printer; the number rules are shared
 (:mod:`jaxskid.codegen._printing`).
 
@@ -47,7 +47,7 @@ from pathlib import Path
 from .._errors import RequestError
 from ..equations._derive import Equations
 from ._c import emit_c, emit_cpp
-from ._common import CodeStyle, Kernel, Layout, portable_names, stem
+from ._common import CodeStyle, Layout, Program, portable_names, stem
 from ._cython import emit_cython
 from ._jax import emit_jax, jax_names
 from ._julia import emit_julia
@@ -177,4 +177,14 @@ def write(files: Mapping[str, str], out_dir: str | os.PathLike, *, force: bool =
     return paths
 
 
-__all__ = ["TARGETS", "CodeStyle", "Kernel", "Layout", "Target", "emit", "generate", "stem", "write"]
+__all__ = ["TARGETS", "CodeStyle", "Layout", "Program", "Target", "emit", "generate", "stem", "write"]
+
+
+def __getattr__(name: str):
+    if name == "Kernel":  # the old name: "kernel" now means only the native kernels of jaxskid.lowering._ffi
+        import warnings
+
+        warnings.warn("jaxskid.codegen.Kernel is deprecated: use jaxskid.codegen.Program", DeprecationWarning,
+                      stacklevel=2)
+        return Program
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

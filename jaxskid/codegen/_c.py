@@ -15,10 +15,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 
+import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
-from ._common import Kernel, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
+from .._generated import NativeKernel, NativeSource, Statement, VectorKernel
+from ._common import Program, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 from ._printing import FastArithmetic
 
 
@@ -33,13 +35,68 @@ class CPrinter(NumberTweaks, FastArithmetic, C99CodePrinter):
         return f"copysign((double)(({x}) != 0), {x})"
 
 
+class NoVectorForm(Exception):
+    """An expression that :class:`VectorPrinter` cannot print (a call other than sine, cosine and sign)."""
+
+
+class VectorPrinter(CPrinter):
+    """C over vectors of states, for the kernels of :mod:`jaxskid.lowering._ffi` (GCC/Clang vector extensions):
+    the scalar C's text, with sine, cosine and the sign of a variable calling the glue's lane-wise
+    ``@V@sin``, ``@V@cos`` and ``@V@sign``, where ``@V@`` stands for the vector type (filled in when a library
+    is built). Only sums, products, powers of a small integer exponent, numbers and these three have a vector
+    form; any other expression raises :class:`NoVectorForm`."""
+
+    def _print(self, expr, **kwargs):
+        if isinstance(expr, sp.Basic) and not _has_vector_form(expr):
+            raise NoVectorForm(type(expr).__name__)
+        return super()._print(expr, **kwargs)
+
+    def _lane_wise(self, expr) -> str:
+        return f"@V@{type(expr).__name__}({self._print(expr.args[0])})"
+
+    _print_sin = _print_cos = _print_sign = _lane_wise
+
+
+_VECTOR_FORMS = (sp.Symbol, sp.Number, sp.NumberSymbol, sp.Add, sp.Mul, sp.sin, sp.cos)
+
+
+def _has_vector_form(e) -> bool:
+    """Sums, products, numbers, sine and cosine; powers of a small integer exponent (printed as products by
+    NumberTweaks; the others call sqrt or pow); the sign of a variable."""
+    small_power = e.is_Pow and e.exp.is_Integer and 0 < abs(int(e.exp)) <= 8
+    return isinstance(e, _VECTOR_FORMS) or bool(small_power) or (isinstance(e, sp.sign) and e.args[0].is_Symbol)
+
+
+def vector_kernel(k: Program, printer: VectorPrinter) -> VectorKernel | None:
+    """The program of ``k`` over vectors of states, as :class:`~jaxskid._generated.Statement` objects (the
+    statements of :func:`body_lines`, a number made a vector with ``@V@LIFT``), or None where it has no vector
+    form (:class:`VectorPrinter`)."""
+
+    def value(e) -> str:
+        text = printer.doprint(e)
+        return f"@V@LIFT({text})" if e.is_Number or e.is_NumberSymbol else text
+
+    def reads(e) -> tuple[str, ...]:
+        return tuple(sorted(s.name for s in e.free_symbols))
+
+    try:
+        lines = [Statement("unused", a, "", ()) for a in k.unused]
+        lines += [Statement("input", s.name, f"{a}[{i}]", ()) for s, a, i in k.inputs]
+        lines += [Statement("define", s.name, value(e), reads(e)) for s, e in k.body]
+        lines += [Statement("output", str(i), value(e), reads(e)) for i, e in enumerate(k.outputs)]
+    except NoVectorForm:
+        return None
+    zeros = tuple(i for i, e in enumerate(k.outputs) if e.is_Number and e == 0)
+    return VectorKernel((*k.args, "p"), tuple(lines), zeros)
+
+
 class CxxPrinter(NumberTweaks, FastArithmetic, CXX11CodePrinter):
     """C++ expressions (``std::sin``, ...) with jaxskid's number and power conventions."""
 
     _sqrt_name = "std::sqrt"
 
 
-def body_lines(k: Kernel, printer, *, decl: str, indent: str = "    ", out: str = "out[{k}]") -> list[str]:
+def body_lines(k: Program, printer, *, decl: str, indent: str = "    ", out: str = "out[{k}]") -> list[str]:
     """The statements of a C-like function body: read the inputs, assign, write the outputs."""
     lines = [f"{indent}(void){a};" for a in k.unused]
     lines += statements(k, printer, lambda a, i: f"{a}[{i}]", f"{indent}{decl} {{}} = {{}};")
@@ -52,7 +109,7 @@ def _block(text: str) -> str:
     return text.replace("*/", "* /")
 
 
-def _params(k: Kernel) -> str:
+def _params(k: Program) -> str:
     return ", ".join([*(f"const double *{a}" for a in k.args), "const double *p", "double *out"])
 
 
@@ -91,14 +148,14 @@ def emit_c(layout: Layout) -> dict[str, str]:
     h = [head, f"#ifndef JAXSKID_{S}_H", f"#define JAXSKID_{S}_H", "", "#ifdef __cplusplus", 'extern "C" {',
          "#endif", "", f"#define {S}_N_DOF {layout.n_dof}", f"#define {S}_NQ {layout.robot.nq}",
          f"#define {S}_NV {layout.robot.nv}", f"#define {S}_N_PARAMS {n_par}"]
-    for k in layout.kernels:
+    for k in layout.programs:
         h.append(f"#define {S}_{k.name.upper()}_SIZE {k.size}")
     h.append("")
     if n_par:
         h += ["/* Parameter names and default values, in the order of p (NAN: no default). */",
               f"extern const char *const {s}_parameter_names[{S}_N_PARAMS];",
               f"extern const double {s}_default_params[{S}_N_PARAMS];", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         shapes = ", ".join(f"{a}: {shape_str(layout.arg_shape(a))}" for a in (*k.args, "p"))
         h += [f"/* {_block(k.equation)}", f" * {_block(k.doc)}",
               f" * {shapes} -> out: {shape_str(k.shape)}, row-major ({k.size} doubles). */",
@@ -113,7 +170,7 @@ def emit_c(layout: Layout) -> dict[str, str]:
         c.append(f"const double {s}_default_params[{S}_N_PARAMS] = "
                  f"{_initializer([_c_double(v) for v in layout.defaults])};")
         c.append("")
-    for k in layout.kernels:
+    for k in layout.programs:
         c += [f"void {s}_{k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
     return {f"{s}.h": "\n".join(h), f"{s}.c": "\n".join(c)}
 
@@ -138,11 +195,11 @@ def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2 or n in NATIVE_VECTORS)
 
 
-def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequence[str] = ()) -> Iterator[dict]:
-    """The C of the native libraries of ``names``, each ``{"stem", "header", "source", "backward",
-    "kernels"}`` and built on its own. ``kernels`` lists the library's :func:`native_quantities`, each as
-    ``(name, input sizes, input core ranks, output size, output rank)`` with the parameters last;
-    ``backward`` says whether it has the backward step of forward dynamics (when ``names`` hold
+def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequence[str] = ()) -> Iterator[NativeSource]:
+    """The C of the native libraries of ``names``, each a :class:`~jaxskid._generated.NativeSource` built on
+    its own. Its ``kernels`` list the library's :func:`native_quantities`, each a
+    :class:`~jaxskid._generated.NativeKernel` (input sizes and core ranks with the parameters last, output
+    size and rank); ``backward`` says whether it has the backward step of forward dynamics (when ``names`` hold
     :data:`FFI_QUANTITIES`). The kernels of the quantities in ``first`` come in a library of their own,
     first; the others, with the backward step, in the next: the quantities that only come with the requested
     ones, for their derivatives. A generator: the caller can start building one library while the next is
@@ -159,22 +216,25 @@ def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequ
         yield _library(eqs, rest, backward, naming)
 
 
-def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> dict:
+def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> NativeSource:
     layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])), naming)
     files = emit_c(layout)
     table = []
     for name in kernels:
         args = (*eqs.quantities[name].args, "p")
-        table.append((name, tuple(layout.arg_size(a) for a in args), tuple(len(layout.arg_shape(a)) for a in args),
-                      math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
-    return {"stem": layout.stem, "header": files[f"{layout.stem}.h"], "source": files[f"{layout.stem}.c"],
-            "backward": backward, "kernels": tuple(table)}
+        table.append(NativeKernel(name, tuple(layout.arg_size(a) for a in args),
+                                  tuple(len(layout.arg_shape(a)) for a in args),
+                                  math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
+    printer = VectorPrinter()
+    vectors = {k.name: vector_kernel(k, printer) for k in layout.programs}
+    return NativeSource(layout.stem, files[f"{layout.stem}.h"], files[f"{layout.stem}.c"], backward, tuple(table),
+                        vectors)
 
 
-def native_block(native: Sequence[dict]) -> str:
-    """Python source assigning ``NATIVE_C`` (the libraries of :func:`native_sources`) for appending to a
-    generated JAX module; ``""`` for none."""
-    return f"\nNATIVE_C = {tuple(native)!r}\n" if native else ""
+def native_block(native: Sequence[NativeSource]) -> str:
+    """Python source assigning ``NATIVE_C`` (the libraries of :func:`native_sources`, as plain data) for
+    appending to a generated JAX module; ``""`` for none."""
+    return f"\nNATIVE_C = {tuple(n.as_dict() for n in native)!r}\n" if native else ""
 
 
 def emit_cpp(layout: Layout) -> dict[str, str]:
@@ -188,7 +248,7 @@ def emit_cpp(layout: Layout) -> dict[str, str]:
          "// Parameter names and default values, in the order of p (NaN: no default).",
          f"extern const std::array<const char *, {n_par}> parameter_names;",
          f"extern const std::array<double, {n_par}> default_params;", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         shapes = ", ".join(f"{a}: {shape_str(layout.arg_shape(a))}" for a in (*k.args, "p"))
         arrays = [f"const std::array<double, {layout.arg_size(a)}> &{a}" for a in k.args]
         arrays.append(f"const std::array<double, {n_par}> &p = default_params")
@@ -207,7 +267,7 @@ def emit_cpp(layout: Layout) -> dict[str, str]:
          f"{_initializer([_c_string(p) for p in layout.parameters])};",
          f"const std::array<double, {n_par}> default_params = "
          f"{_initializer([nan if v != v else double(v) for v in layout.defaults])};", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         c += [f"void {k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
     c += [f"}}  // namespace {s}", ""]
     return {f"{s}.hpp": "\n".join(h), f"{s}.cpp": "\n".join(c)}

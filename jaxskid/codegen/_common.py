@@ -1,9 +1,9 @@
 """The one program representation every target prints, and what the emitters share.
 
 Each generated function is the program of one quantity (``Equations.program([name])``), pruned to the
-assignments it needs and to the input entries it reads (:class:`Kernel`), printed as one assignment per
+assignments it needs and to the input entries it reads (:class:`Program`), printed as one assignment per
 line, so common subexpressions stay shared exactly as the derivation named them. A :class:`Layout` is a
-request (equations and quantity names) with the kernels of its quantities, the header every file starts
+request (equations and quantity names) with the programs of its quantities, the header every file starts
 with and the metadata the runtime reads.
 
 Symbols are renamed by the layout's ``naming``. :func:`portable_names` gives names that are valid in every
@@ -47,7 +47,7 @@ def stem(robot_name: str) -> str:
 
 
 @dataclass(frozen=True)
-class Kernel:
+class Program:
     """One quantity as a straight-line program over renamed symbols.
 
     ``inputs`` are the entries of the arguments (and of ``p``) that the program reads, as
@@ -120,7 +120,7 @@ def portable_names(eqs: Equations) -> dict:
 @dataclass(frozen=True)
 class Layout:
     """A request as the emitters see it: the robot, its arguments, parameters and defaults, and the
-    kernels of the quantities ``names`` with their symbols renamed by ``naming`` (a function
+    programs of the quantities ``names`` with their symbols renamed by ``naming`` (a function
     ``Equations -> {symbol: new symbol}``; a symbol it leaves out keeps its name), presented in ``style``."""
 
     eqs: Equations
@@ -153,7 +153,7 @@ class Layout:
     @property
     def uses_wrench(self) -> bool:
         """Whether a quantity takes an (n_ee, 6) wrench argument."""
-        return any(len(self.arg_shape(a)) == 2 for k in self.kernels for a in k.args)
+        return any(len(self.arg_shape(a)) == 2 for k in self.programs for a in k.args)
 
     def arg_shape(self, arg: str) -> tuple[int, ...]:
         return (len(self.parameters),) if arg == "p" else tuple(self.eqs.arguments[arg].shape)
@@ -162,20 +162,28 @@ class Layout:
         return math.prod(self.arg_shape(arg))
 
     @cached_property
-    def kernels(self) -> tuple[Kernel, ...]:
-        """The kernels of ``names``, made once per equations, quantity and naming: the layouts of one
+    def programs(self) -> tuple[Program, ...]:
+        """The programs of ``names``, made once per equations, quantity and naming: the layouts of one
         lowering (the JAX module and its native C) share them (for the G1's Coriolis matrix, seconds)."""
-        made = self.eqs.__dict__.setdefault("_kernels", {})  # frozen, but this cache is its own
+        made = self.eqs.__dict__.setdefault("_programs", {})  # frozen, but this cache is its own
         renamed = self.eqs.__dict__.setdefault("_renamed", {}).setdefault(self.naming, {})
         rename = None
         for n in self.names:
             if (n, self.naming) not in made:
                 rename = self.naming(self.eqs) if rename is None else rename
-                made[(n, self.naming)] = kernel(self.eqs, n, rename, renamed)
-        kernels = tuple(made[(n, self.naming)] for n in self.names)
+                made[(n, self.naming)] = program(self.eqs, n, rename, renamed)
+        programs = tuple(made[(n, self.naming)] for n in self.names)
         if self.style.shapes == "skidy":  # vectors as (n, 1) columns
-            kernels = tuple(replace(k, shape=(*k.shape, 1)) if len(k.shape) == 1 else k for k in kernels)
-        return kernels
+            programs = tuple(replace(k, shape=(*k.shape, 1)) if len(k.shape) == 1 else k for k in programs)
+        return programs
+
+    @property
+    def kernels(self) -> tuple[Program, ...]:
+        """Deprecated: :attr:`programs` ("kernel" now means only the native kernels of the runtime)."""
+        import warnings
+
+        warnings.warn("Layout.kernels is deprecated: use Layout.programs", DeprecationWarning, stacklevel=2)
+        return self.programs
 
     def metadata(self) -> dict:
         """What the runtime needs to call the generated functions, as plain JSON data: ``robot``,
@@ -221,11 +229,11 @@ class Layout:
             "",
             "Quantities (name(arguments) -> shape: equation):",
         ]
-        for k in self.kernels:
+        for k in self.programs:
             lines.append(f"  {k.name}({', '.join((*k.args, 'p'))}) -> {_shape_str(k.shape)}: {k.equation}")
             lines.append(f"      {k.doc}")
         lines += ["", "Arguments (float64):"]
-        args = [a for a in self.eqs.arguments if any(a in k.args for k in self.kernels)]
+        args = [a for a in self.eqs.arguments if any(a in k.args for k in self.programs)]
         joints = ", ".join(r.joint_names)
         for a in args:
             arg = self.eqs.arguments[a]
@@ -249,9 +257,9 @@ class Layout:
         return lines
 
 
-def kernel(eqs: Equations, name: str, rename: dict, renamed: dict) -> Kernel:
+def program(eqs: Equations, name: str, rename: dict, renamed: dict) -> Program:
     """The program of one quantity, pruned and renamed (see the module docstring). ``renamed``: the renamed
-    assignments by symbol, shared by the kernels of one renaming (their programs overlap: forward dynamics
+    assignments by symbol, shared by the programs of one renaming (their programs overlap: forward dynamics
     holds most of the mass matrix and inverse dynamics)."""
     qty = eqs.quantities[name]
     prog = eqs.program([name])
@@ -276,11 +284,11 @@ def kernel(eqs: Equations, name: str, rename: dict, renamed: dict) -> Kernel:
     for k, s in enumerate(eqs.param_symbols):
         if s in used:
             inputs.append((rename.get(s, s), "p", k))
-    return Kernel(name, tuple(qty.args), tuple(qty.shape), qty.equation, qty.doc, tuple(inputs), tuple(body),
+    return Program(name, tuple(qty.args), tuple(qty.shape), qty.equation, qty.doc, tuple(inputs), tuple(body),
                   tuple(outputs))
 
 
-def statements(k: Kernel, printer, read: Callable[[str, int], str], assign: str = "{} = {}") -> list[str]:
+def statements(k: Program, printer, read: Callable[[str, int], str], assign: str = "{} = {}") -> list[str]:
     """The straight-line body of a generated function, one line per input entry it reads and per
     assignment: ``assign.format(name, value)``, where an input's value is ``read(argument, flat index)``
     and an assignment's is the printed expression."""

@@ -35,7 +35,7 @@ def emit_cython(layout: Layout) -> dict[str, str]:
         "Indices above are 0-based.",
     ]
     functions: list[str] = []
-    for k in layout.kernels:
+    for k in layout.programs:
         lines = [f"def {k.name}({', '.join(k.args)}, p=None):",
                  f'    """{k.equation}: {k.doc}',
                  "",

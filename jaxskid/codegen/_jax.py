@@ -1,7 +1,7 @@
 """JAX emitter: ``<stem>_jax.py``, the module :func:`jaxskid.lower` generates, caches and loads.
 
 The module has one pure function per quantity, ``name(*state, p) -> array``, for a single state; batching
-is ``jax.vmap``'s job. It carries the fused helpers of :mod:`jaxskid._kernels` and ``METADATA``, what the
+is ``jax.vmap``'s job. It carries the fused helpers of :mod:`jaxskid._fused` and ``METADATA``, what the
 runtime needs to call it (:meth:`jaxskid.codegen.Layout.metadata`).
 
 Output form. How the result array is assembled decides how fast XLA on CPU runs the function in a batch.
@@ -14,7 +14,7 @@ Output form. How the result array is assembled decides how fast XLA on CPU runs 
   against an index held in memory, n^2 selects for n entries;
 - nested chains, one per axis, on ``lax.broadcasted_iota`` of that axis: the innermost index is a loop
   constant after unrolling, so those selects fold away, and the outer chains select whole rows (faster
-  still with the fusible sine and cosine of :mod:`jaxskid._kernels`);
+  still with the fusible sine and cosine of :mod:`jaxskid._fused`);
 - the same, with every input entry first broadcast to the output's shape (what is generated): every
   operation is then elementwise on one shape, so XLA's estimate of how often a shared value would be
   recomputed stays low and the whole function is one kernel (the Coriolis matrix: one kernel instead of
@@ -35,19 +35,19 @@ import sympy as sp
 from sympy.printing.numpy import JaxPrinter as _SympyJaxPrinter
 from sympy.printing.precedence import PRECEDENCE
 
-from .._kernels import SOURCE as KERNELS_SOURCE
+from .._fused import SOURCE as FUSED_SOURCE
 from ..equations._derive import Equations
-from ._common import Kernel, Layout, NumberTweaks, statements, unravel
+from ._common import Program, Layout, NumberTweaks, statements, unravel
 from ._printing import FastArithmetic
 
-GENERATOR_VERSION = "15"
+GENERATOR_VERSION = "18"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 
 class JaxPrinter(NumberTweaks, FastArithmetic, _SympyJaxPrinter):
     """JAX printer with the shared number rules (:class:`~jaxskid.codegen._printing.NumberTweaks`): plain
     Python float literals are weakly typed, so constants take the inputs' dtype. Sine, cosine and
-    negative powers call the fused helpers of :mod:`jaxskid._kernels`."""
+    negative powers call the fused helpers of :mod:`jaxskid._fused`."""
 
     _sqrt_name = "jax.numpy.sqrt"
 
@@ -56,7 +56,7 @@ class JaxPrinter(NumberTweaks, FastArithmetic, _SympyJaxPrinter):
 
     def _print_Pow(self, expr, rational=False):
         base, exp = expr.args
-        if exp.is_Integer and -8 <= int(exp) < 0 or exp == -sp.Rational(1, 2):  # 1/x by Newton (_kernels)
+        if exp.is_Integer and -8 <= int(exp) < 0 or exp == -sp.Rational(1, 2):  # 1/x by Newton (jaxskid._fused)
             return f"_recip({self._print(sp.Pow(base, -exp, evaluate=False))})"
         return super()._print_Pow(expr, rational)
 
@@ -147,21 +147,22 @@ _MAX_NESTING = 64
 """Selects nested in one expression of an output's where chain, at most (see :func:`_assemble`)."""
 
 
-def function_source(layout: Layout, k: Kernel, printer: JaxPrinter) -> str:
-    """Source of one quantity: ``_name(*args, p, spread)``, the program (``spread`` broadcasts each input
-    entry to the output's shape, or is the identity), and ``name(*args, p)``, the ``jax.custom_jvp``
+def function_source(layout: Layout, k: Program, printer: JaxPrinter) -> str:
+    """Source of one quantity: ``_name(*args, p, spread, entries=False)``, the program (``spread`` broadcasts
+    each input entry to the output's shape, or is the identity; ``entries=True`` returns the structurally
+    nonzero entries by flat index, unassembled, for a quantity with a shape), and ``name(*args, p)``, the ``jax.custom_jvp``
     that runs it broadcast and differentiates it unbroadcast (see the module docstring and
-    :mod:`jaxskid._kernels`)."""
+    :mod:`jaxskid._fused`)."""
     args = ", ".join((*k.args, "p"))
 
     def read(a: str, i: int) -> str:
         return f"spread({a}[{', '.join(map(str, unravel(i, layout.arg_shape(a))))}])"
 
-    lines = [f"def _{k.name}({args}, spread):"]
+    lines = [f"def _{k.name}({args}, spread{', entries=False' if k.shape else ''}):"]
     lines += ["    " + line for line in statements(k, printer, read)]
     if k.shape:  # the entries form: the structurally nonzero entries by flat index, unassembled
         nonzero = ", ".join(f"{i}: {printer.doprint(v)}" for i, v in enumerate(k.outputs) if v != 0)
-        lines += ["    if spread is _entries:", f"        return {{{nonzero}}}"]
+        lines += ["    if entries:", f"        return {{{nonzero}}}"]
     lines += ["    " + line for line in _assemble(k.shape, k.outputs, printer, f"jnp.result_type({k.args[0]}, p)")]
     spread = f"_spread({assembly_shape(k.shape)!r})" if k.shape else "_same"
     lines += [
@@ -187,12 +188,12 @@ def module_source(layout: Layout) -> str:
         "# vector in the order of METADATA['parameters']; it returns one array. Batch with jax.vmap.",
         "import jax",
         "import jax.numpy as jnp",
-        KERNELS_SOURCE,
+        FUSED_SOURCE,
         f"METADATA = {json.dumps(layout.metadata())}",  # in order: the quantities as the catalogue lists them
         "",
     ]
     printer = JaxPrinter()
-    body = "\n\n".join(function_source(layout, k, printer) for k in layout.kernels)
+    body = "\n\n".join(function_source(layout, k, printer) for k in layout.programs)
     return "\n".join(header) + "\n" + body
 
 

@@ -48,7 +48,7 @@ def emit_julia(layout: Layout) -> dict[str, str]:
            f"const END_EFFECTORS = String[{', '.join(_string(n) for n in r.end_effectors)}]",
            f"const PARAMETERS = String[{', '.join(_string(n) for n in layout.parameters)}]",
            f"const DEFAULT_PARAMS = Float64[{', '.join(_jl_float(v) for v in layout.defaults)}]", ""]
-    for k in layout.kernels:
+    for k in layout.programs:
         sig = [f"{a}::{'AbstractMatrix' if len(layout.arg_shape(a)) == 2 else 'AbstractVector'}" for a in k.args]
         sig.append("p::AbstractVector=DEFAULT_PARAMS")
         out += ['"""', f"    {k.name}({', '.join((*k.args, 'p'))}) -> Array, size {shape_str(k.shape)}", "",

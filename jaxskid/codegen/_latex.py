@@ -92,7 +92,7 @@ def emit_latex(layout: Layout) -> dict[str, str]:
     else:
         doc.append("None: every value is a number.")
     doc.append("")
-    for k in layout.kernels:
+    for k in layout.programs:
         sym = _OUTPUT_LATEX.get(k.name, rf"\mathrm{{{escape(k.name)}}}")
         doc += [rf"\subsection*{{\texttt{{{escape(k.name)}}}: shape {shape_str(k.shape)}}}",
                 "",

@@ -52,7 +52,7 @@ def emit_matlab(layout: Layout) -> dict[str, str]:
         f"function names = {s}_parameter_names()\n"
         f"%{s.upper()}_PARAMETER_NAMES Names of the entries of p, as a cell column.\n{head}names = {{{names}}};\nend\n"
     )
-    for k in layout.kernels:
+    for k in layout.programs:
         fn = f"{s}_{k.name}"
         args = (*k.args, "p")
         lines = [f"function out = {fn}({', '.join(args)})",

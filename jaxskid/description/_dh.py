@@ -46,7 +46,7 @@ import sympy as sp
 from .._errors import ModelError
 from ..model import _lie as lie
 from ..model._robot import Frame, Joint, Robot
-from ..model._validate import check_parents, check_pose, describe, to_expr
+from ..model._validate import check_parents, check_pose, describe_value, to_expr
 from ._keymap import KeyMap
 from ._yaml_values import ValueReader
 
@@ -112,7 +112,7 @@ def table_geometry(rows: Sequence[DH], convention: str, parents: Sequence[int], 
 # ---------------------------------------------------------------------------------------------- reading rows
 def check_convention(value, where: str) -> str:
     if value not in CONVENTIONS:
-        got = repr(value) if isinstance(value, str) else describe(value)
+        got = repr(value) if isinstance(value, str) else describe_value(value)
         raise ModelError(f"unknown convention {got}; expected standard (Denavit-Hartenberg, Spong: "
                          f"Rz(theta) Tz(d) Tx(a) Rx(alpha)) or modified (Craig: Rx(alpha) Tx(a) Rz(theta) Tz(d))",
                          where=where)
@@ -130,7 +130,7 @@ def read_rows(values, reader: ValueReader, where: str, variables: Mapping[str, i
     """Checked rows from a list of mappings (or :class:`DH` rows), each entry read by ``reader.scalar``;
     ``variables`` maps the names of joint variables to their joint's index."""
     if not isinstance(values, (list, tuple)) or not values:
-        raise ModelError(f"expected a non-empty list of rows ({', '.join(ROW_KEYS)}), got {describe(values)}",
+        raise ModelError(f"expected a non-empty list of rows ({', '.join(ROW_KEYS)}), got {describe_value(values)}",
                          where=where)
     rows = []
     for i, value in enumerate(values):
@@ -140,7 +140,7 @@ def read_rows(values, reader: ValueReader, where: str, variables: Mapping[str, i
         row = reader.mapping(value, at, ROW_KEYS, required=ROW_KEYS)
         kind = row["type"]
         if kind not in _MOVES:
-            got = repr(kind) if isinstance(kind, str) else describe(kind)
+            got = repr(kind) if isinstance(kind, str) else describe_value(kind)
             raise ModelError(f"unknown joint type {got}; expected revolute or prismatic", where=f"{at}.type")
         entries = {}
         for key in ROW_KEYS[1:]:
@@ -182,7 +182,7 @@ def dh_size(block, reader: ValueReader) -> int:
     d = reader.mapping(block, "dh", ("convention", "base", "joints"), required=("convention", "joints"))
     joints = d["joints"]
     if not isinstance(joints, list) or not joints:
-        raise ModelError(f"expected a non-empty list (one row per joint), got {describe(joints)}", where="dh.joints")
+        raise ModelError(f"expected a non-empty list (one row per joint), got {describe_value(joints)}", where="dh.joints")
     return len(joints)
 
 

@@ -18,7 +18,7 @@ import sympy as sp
 from .._errors import ModelError
 from ..model._joint import Frame
 from ..model._robot import Robot
-from ..model._validate import describe
+from ..model._validate import describe_value
 from ._keymap import KeyMap
 from ._yaml_values import ValueReader
 
@@ -31,14 +31,14 @@ def with_end_effectors(robot: Robot, end_effectors: Mapping, *, source: str | No
             pose that is no rigid transformation, a name that another frame has.
     """
     if not isinstance(end_effectors, Mapping) or not end_effectors:
-        raise ModelError(f"expected a mapping of names to (link, pose), got {describe(end_effectors)}",
+        raise ModelError(f"expected a mapping of names to (link, pose), got {describe_value(end_effectors)}",
                          where="end_effectors", source=source)
     reader, frames, keys = ValueReader(source or "<robot>"), list(robot.frames), KeyMap()
     try:
         for name, entry in end_effectors.items():
             where = f"end_effectors.{name}"
             if not isinstance(entry, (tuple, list)) or len(entry) != 2 or not isinstance(entry[0], str):
-                raise ModelError(f"expected (link name, pose), got {describe(entry)}", where=where)
+                raise ModelError(f"expected (link name, pose), got {describe_value(entry)}", where=where)
             link, pose = entry
             if link not in robot.frame_names:
                 raise ModelError(f"unknown link {link!r}; expected one of {', '.join(robot.frame_names)}", where=where)

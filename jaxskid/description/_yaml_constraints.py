@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..model._constraint import FrameContact, LoopClosure, PointContact
-from ..model._validate import describe
+from ..model._validate import describe_value
 from ._keymap import KeyMap
 from ._yaml_values import ValueReader
 
@@ -38,20 +38,20 @@ def read_constraints(reader: ValueReader, value, keys: KeyMap) -> tuple:
         return ()
     if not isinstance(value, list):
         raise reader.error("constraints", f"expected a list of point_contact, frame_contact or loop_closure "
-                                          f"entries, got {describe(value)}")
+                                          f"entries, got {describe_value(value)}")
     return tuple(_entry(reader, item, f"constraints[{k}]", keys) for k, item in enumerate(value))
 
 
 def _entry(reader: ValueReader, item, where: str, keys: KeyMap):
     kinds = [k for k in _KINDS if isinstance(item, Mapping) and k in item]
     if len(kinds) != 1:
-        raise reader.error(where, f"expected a mapping with one of the keys {', '.join(_KINDS)}, got {describe(item)}")
+        raise reader.error(where, f"expected a mapping with one of the keys {', '.join(_KINDS)}, got {describe_value(item)}")
     kind = kinds[0]
     d = reader.mapping(item, where, (kind, *_KINDS[kind]))
     if kind == "loop_closure":
         frames = d[kind]
         if not isinstance(frames, list) or len(frames) != 2:
-            raise reader.error(f"{where}.{kind}", f"expected the names of two frames, got {describe(frames)}")
+            raise reader.error(f"{where}.{kind}", f"expected the names of two frames, got {describe_value(frames)}")
         names = [reader.name_value(f, f"{where}.{kind}[{k}]") for k, f in enumerate(frames)]
         keys.add(f"{where}.frame_a", f"{where}.{kind}[0]")
         keys.add(f"{where}.frame_b", f"{where}.{kind}[1]")
@@ -62,7 +62,7 @@ def _entry(reader: ValueReader, item, where: str, keys: KeyMap):
     at = d.get("at")
     if at is not None:
         if not isinstance(at, Mapping):
-            raise reader.error(f"{where}.at", f"expected a mapping of joint names to positions, got {describe(at)}")
+            raise reader.error(f"{where}.at", f"expected a mapping of joint names to positions, got {describe_value(at)}")
         at = {str(k): reader.scalar(v, f"{where}.at.{k}") for k, v in at.items()}
     if kind == "point_contact":
         position = tuple(reader.vector(d["position"], 3, f"{where}.position")) if "position" in d else None
@@ -76,5 +76,5 @@ def _axes(reader: ValueReader, value, where: str):
     if isinstance(value, str):
         return value
     if not isinstance(value, list) or not all(isinstance(a, str) for a in value):
-        raise reader.error(where, f"expected a list of axis names (rx, ry, rz, x, y, z), got {describe(value)}")
+        raise reader.error(where, f"expected a list of axis names (rx, ry, rz, x, y, z), got {describe_value(value)}")
     return tuple(value)

@@ -79,7 +79,7 @@ import sympy as sp
 
 from .._errors import DescriptionWarning, ModelError
 from ..model._robot import Frame, Joint, Robot, spatial_to_body
-from ..model._validate import describe
+from ..model._validate import describe_value
 from ._dh import dh_size, joint_variables, read_dh
 from ._keymap import KeyMap
 from ._wrenches import DescriptionExtras, end_effector_wrenches
@@ -208,7 +208,7 @@ class _Parser(ValueReader):
         """The top level's keys; returns the number of joints."""
         d = self.data
         if not isinstance(d, Mapping):
-            raise self.error(None, f"expected a mapping of keys at the top level, got {describe(d)}")
+            raise self.error(None, f"expected a mapping of keys at the top level, got {describe_value(d)}")
         allowed = _SKIDY_KEYS + _JAXSKID_KEYS
         for key in d:
             if key not in allowed:
@@ -226,7 +226,7 @@ class _Parser(ValueReader):
             return dh_size(d["dh"], self)
         screws = d["joint_screw_coord"]
         if not isinstance(screws, list) or not screws:
-            raise self.error("joint_screw_coord", f"expected a non-empty list (one entry per joint), got {describe(screws)}")
+            raise self.error("joint_screw_coord", f"expected a non-empty list (one entry per joint), got {describe_value(screws)}")
         return len(screws)
 
     def joints(self, n, joint_names, link_names) -> list[Joint]:
@@ -255,7 +255,7 @@ class _Parser(ValueReader):
         """(types, body-fixed screws, body-fixed poses, parents) from ``joint_screw_coord`` and ``body_ref_config``."""
         representation = self.data.get("representation", "spatial")
         if representation not in ("spatial", "body_fixed"):
-            raise self.error("representation", f"expected spatial or body_fixed, got {describe(representation)}")
+            raise self.error("representation", f"expected spatial or body_fixed, got {describe_value(representation)}")
         parents = read_tree(self, n)
         poses_in = self.entries("body_ref_config", n)
         typed = [self.screw(s, f"joint_screw_coord[{i}]") for i, s in enumerate(self.data["joint_screw_coord"])]
@@ -271,7 +271,7 @@ class _Parser(ValueReader):
     def entries(self, key, n) -> list:
         value = self.data[key]
         if not isinstance(value, list):
-            raise self.error(key, f"expected a list with one entry per joint, got {describe(value)}")
+            raise self.error(key, f"expected a list with one entry per joint, got {describe_value(value)}")
         if len(value) != n:
             raise self.error(key, f"expected {n} entries (one per joint in {self.count_key}), got {len(value)}")
         return value
@@ -281,7 +281,7 @@ class _Parser(ValueReader):
         if value is None:
             return None
         if not isinstance(value, list):
-            raise self.error(key, f"expected a list of {n} names, got {describe(value)}")
+            raise self.error(key, f"expected a list of {n} names, got {describe_value(value)}")
         if len(value) != n:
             raise self.error(key, f"expected {n} names (one per joint in {self.count_key}), got {len(value)}")
         for i, v in enumerate(value):
@@ -296,7 +296,7 @@ class _Parser(ValueReader):
     def assignments(self) -> dict[str, float]:
         value = self.data.get("assignments", {})
         if not isinstance(value, Mapping):
-            raise self.error("assignments", f"expected a mapping of parameter names to numbers, got {describe(value)}")
+            raise self.error("assignments", f"expected a mapping of parameter names to numbers, got {describe_value(value)}")
         out = {}
         for key, v in value.items():
             where = f"assignments.{key}"
@@ -339,7 +339,7 @@ class _Parser(ValueReader):
         if order is not None:
             names = [f.name for f in frames]
             if not isinstance(order, list) or sorted(map(str, order)) != sorted(names) or len(order) != len(names):
-                raise self.error("frame_order", f"expected the names {names} in some order, got {describe(order)}")
+                raise self.error("frame_order", f"expected the names {names} in some order, got {describe_value(order)}")
             perm = [names.index(nm) for nm in order]
             frames, keys = [frames[j] for j in perm], [keys[j] for j in perm]
         for k, (name_key, pose_key) in enumerate(keys):
@@ -360,7 +360,7 @@ class _Parser(ValueReader):
         single = isinstance(ee, Mapping) or (isinstance(ee, list) and len(ee) > 0 and isinstance(ee[0], list)
                                               and len(ee[0]) > 0 and not isinstance(ee[0][0], (list, Mapping)))
         if not single and not isinstance(ee, list):
-            raise self.error("ee", f"expected a pose or a list of poses, got {describe(ee)}")
+            raise self.error("ee", f"expected a pose or a list of poses, got {describe_value(ee)}")
         entries = [ee] if single else ee
         pose_keys = ["ee"] if single else [f"ee[{i}]" for i in range(len(ee))]
         poses = [self.pose(p, key) for p, key in zip(entries, pose_keys)]
@@ -371,7 +371,7 @@ class _Parser(ValueReader):
         if names is None:
             names, name_keys = (["ee"] if k == 1 else [f"ee{i + 1}" for i in range(k)]), ["ee"] * k
         elif not isinstance(names, list) or len(names) != k:
-            raise self.error("ee_names", f"expected {k} name(s), one per ee, got {describe(names)}")
+            raise self.error("ee_names", f"expected {k} name(s), one per ee, got {describe_value(names)}")
         else:
             name_keys = [f"ee_names[{i}]" for i in range(k)]
         return [(self.name_value(nm, key), p, pose, (key, pk))
@@ -388,21 +388,21 @@ class _Parser(ValueReader):
             parents, keys = [parents] * k, ["ee_parent"] * k
         for p, key in zip(parents, keys):
             if not is_int(p) or not 0 <= p <= n:
-                raise self.error(key, f"expected a body index in 0..{n} (0 is the world), got {describe(p)}")
+                raise self.error(key, f"expected a body index in 0..{n} (0 is the world), got {describe_value(p)}")
         return parents
 
     def frame_entries(self, n) -> list[tuple]:
         """(name, 1-based parent, pose, (name key, pose key)) of every entry of ``frames``."""
         value = self.data.get("frames", [])
         if not isinstance(value, list):
-            raise self.error("frames", f"expected a list of {{name, parent, pose}}, got {describe(value)}")
+            raise self.error("frames", f"expected a list of {{name, parent, pose}}, got {describe_value(value)}")
         out = []
         for i, f in enumerate(value):
             where = f"frames[{i}]"
             f = self.mapping(f, where, ("name", "parent", "pose"), required=("name", "parent"))
             if not is_int(f["parent"]) or not 0 <= f["parent"] <= n:
                 raise self.error(f"{where}.parent", f"expected a body index in 0..{n} (0 is the world), "
-                                                    f"got {describe(f['parent'])}")
+                                                    f"got {describe_value(f['parent'])}")
             pose = self.pose(f["pose"], f"{where}.pose") if "pose" in f else sp.eye(4)
             keys = (f"{where}.name", f"{where}.pose{self.rotation_key(f.get('pose'))}")
             out.append((self.name_value(f["name"], f"{where}.name"), f["parent"], pose, keys))
@@ -411,7 +411,7 @@ class _Parser(ValueReader):
     def lock(self) -> dict:
         value = self.data.get("lock", {})
         if not isinstance(value, Mapping):
-            raise self.error("lock", f"expected a mapping of joint names to positions, got {describe(value)}")
+            raise self.error("lock", f"expected a mapping of joint names to positions, got {describe_value(value)}")
         return {str(k): self.scalar(v, f"lock.{k}") for k, v in value.items()}
 
     def extras(self, names, joint_names, end_effectors, offsets) -> DescriptionExtras:
@@ -428,7 +428,7 @@ class _Parser(ValueReader):
         if value is None:
             return tuple(tuple(sp.Integer(0) for _ in range(6)) for _ in end_effectors)
         if not isinstance(value, list) or not value:
-            raise self.error(key, f"expected a 6-vector (moment, force) or one per ee, got {describe(value)}")
+            raise self.error(key, f"expected a 6-vector (moment, force) or one per ee, got {describe_value(value)}")
         if isinstance(value[0], list):
             if len(value) != len(end_effectors):
                 raise self.error(key, f"expected {len(end_effectors)} wrenches (one per ee), got {len(value)}")

@@ -27,7 +27,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 
 from .._errors import DescriptionWarning, ModelError, RequestError
-from ..model._validate import describe, symbol, to_expr
+from ..model._validate import describe_value, symbol, to_expr
 
 DIALECTS = ("jaxskid", "skidy")
 """The ways a YAML/JSON description can be read: jaxskid's own (strict) and Skidy's."""
@@ -170,5 +170,5 @@ def _evaluate(key, exprs: dict, deps: dict, done: dict, path: list) -> None:
 def check_dialect(dialect, where: str = "dialect") -> str:
     """``dialect`` if it is one of :data:`DIALECTS`, else a :class:`RequestError` that names them."""
     if dialect not in DIALECTS:
-        raise RequestError(f"{where}: expected one of {', '.join(DIALECTS)}, got {describe(dialect)}")
+        raise RequestError(f"{where}: expected one of {', '.join(DIALECTS)}, got {describe_value(dialect)}")
     return dialect

@@ -11,7 +11,7 @@ from __future__ import annotations
 import warnings
 
 from .._errors import DescriptionWarning
-from ..model._validate import check_parents, describe
+from ..model._validate import check_parents, describe_value
 
 
 def is_int(value) -> bool:
@@ -26,16 +26,16 @@ def read_tree(reader, n) -> list[int]:
     support = d.get("support")
     if support is not None:
         if not isinstance(support, list) or len(support) != n:
-            raise reader.error("support", f"expected {n} lists (one per joint), got {describe(support)}")
+            raise reader.error("support", f"expected {n} lists (one per joint), got {describe_value(support)}")
         for i, s in enumerate(support):
             if not isinstance(s, list) or not s or not all(is_int(b) and 1 <= b <= n for b in s):
-                raise reader.error(f"support[{i}]", f"expected a non-empty list of body indices in 1..{n}, got {describe(s)}")
+                raise reader.error(f"support[{i}]", f"expected a non-empty list of body indices in 1..{n}, got {describe_value(s)}")
             if s[-1] != i + 1:
                 raise reader.error(f"support[{i}]", f"expected the path from the root to body {i + 1}, ending with {i + 1}, got {s}")
     if "parent" in d:
         key, given = "parent", d["parent"]
         if not isinstance(given, list) or len(given) != n:
-            raise reader.error("parent", f"expected {n} body indices (one per joint), got {describe(given)}")
+            raise reader.error("parent", f"expected {n} body indices (one per joint), got {describe_value(given)}")
     elif support is not None:
         key, given = "support", [s[-2] if len(s) > 1 else 0 for s in support]
     else:
@@ -72,11 +72,11 @@ def _check_children(reader, given, key) -> None:
     expected = [[k + 1 for k in range(n) if given[k] == i + 1] for i in range(n)]
     problem = None
     if not isinstance(child, list) or len(child) != n:
-        problem = f"expected {n} lists (one per joint), got {describe(child)}"
+        problem = f"expected {n} lists (one per joint), got {describe_value(child)}"
     else:
         for i, c in enumerate(child):
             if not isinstance(c, list) or not all(is_int(b) for b in c) or sorted(c) != expected[i]:
-                shown = c if isinstance(c, list) else describe(c)
+                shown = c if isinstance(c, list) else describe_value(c)
                 problem = f"child[{i}] is {shown}, but the bodies whose parent is body {i + 1} are {expected[i]}"
                 break
     if problem is not None:

@@ -19,7 +19,7 @@ import sympy as sp
 from .._errors import DescriptionWarning, ModelError
 from ..model import _lie as lie
 from ..model._validate import (
-    check_mass, check_rotation, check_symmetric, check_unit, describe, numeric, symbol, to_expr,
+    check_mass, check_rotation, check_symmetric, check_unit, describe_value, numeric, symbol, to_expr,
 )
 
 INERTIA_KEYS = ("Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz")
@@ -45,7 +45,7 @@ class ValueReader:
     # ------------------------------------------------------------------ scalars, vectors, matrices
     def scalar(self, value, where) -> sp.Expr:
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise self.error(where, f"expected a number or an expression, got {describe(value)}")
+            raise self.error(where, f"expected a number or an expression, got {describe_value(value)}")
         expr = to_expr(value, where=where)
         for s in expr.free_symbols:
             if s.name in self.reserved:
@@ -54,21 +54,21 @@ class ValueReader:
 
     def vector(self, value, size, where) -> list:
         if not isinstance(value, list):
-            raise self.error(where, f"expected a list of {size} values, got {describe(value)}")
+            raise self.error(where, f"expected a list of {size} values, got {describe_value(value)}")
         if len(value) != size:
             raise self.error(where, f"expected {size} values, got {len(value)}")
         return [self.scalar(v, f"{where}[{k}]") for k, v in enumerate(value)]
 
     def matrix(self, value, rows, cols, where) -> sp.Matrix:
         if not isinstance(value, list) or not all(isinstance(r, list) for r in value):
-            raise self.error(where, f"expected a {rows}x{cols} matrix (a list of {rows} rows), got {describe(value)}")
+            raise self.error(where, f"expected a {rows}x{cols} matrix (a list of {rows} rows), got {describe_value(value)}")
         if len(value) != rows:
             raise self.error(where, f"expected a {rows}x{cols} matrix with {rows} rows, got {len(value)} rows")
         return sp.Matrix([self.vector(r, cols, f"{where}[{k}]") for k, r in enumerate(value)])
 
     def mapping(self, value, where, allowed, required=()) -> Mapping:
         if not isinstance(value, Mapping):
-            raise self.error(where, f"expected a mapping with keys {', '.join(allowed)}, got {describe(value)}")
+            raise self.error(where, f"expected a mapping with keys {', '.join(allowed)}, got {describe_value(value)}")
         for key in value:
             if key not in allowed:
                 raise self.error(where, f"unknown key {key!r}; expected one of {', '.join(allowed)}")
@@ -84,12 +84,12 @@ class ValueReader:
         if value is None:
             return [None] * n
         if not isinstance(value, list) or len(value) != n:
-            raise self.error(key, f"expected a list of {n} entries ({what} or null per joint), got {describe(value)}")
+            raise self.error(key, f"expected a list of {n} entries ({what} or null per joint), got {describe_value(value)}")
         return [None if item is None else entry(item, f"{key}[{i}]", i) for i, item in enumerate(value)]
 
     def name_value(self, value, where) -> str:
         if not isinstance(value, str) or not value.strip():
-            raise self.error(where, f"expected a non-empty name, got {describe(value)}")
+            raise self.error(where, f"expected a non-empty name, got {describe_value(value)}")
         return value
 
     # ------------------------------------------------------------------ poses and screws
@@ -167,7 +167,7 @@ class ValueReader:
         frame = d.get("frame", "body")
         if frame not in ("body", "com"):
             raise self.error(f"{where}.frame", f"expected body (inertia about the body frame's origin) or com "
-                                               f"(about the centre of mass), got {describe(frame)}")
+                                               f"(about the centre of mass), got {describe_value(frame)}")
         if "rotation" in d and frame == "com":
             r = self.rotation(d["rotation"], f"{where}.rotation")
             check_rotation(r, self.values, f"{where}.rotation")
@@ -200,9 +200,9 @@ class ValueReader:
         d = self.mapping(value, where, ("index", "pointmass"), required=("index",))
         index, pointmass = d["index"], d.get("pointmass", False)
         if isinstance(index, bool) or not isinstance(index, (int, str)) or not f"Ixx{index}".isidentifier():
-            raise self.error(f"{where}.index", f"expected an integer or a name suffix, got {describe(index)}")
+            raise self.error(f"{where}.index", f"expected an integer or a name suffix, got {describe_value(index)}")
         if not isinstance(pointmass, bool):
-            raise self.error(f"{where}.pointmass", f"expected true or false, got {describe(pointmass)}")
+            raise self.error(f"{where}.pointmass", f"expected true or false, got {describe_value(pointmass)}")
         if pointmass:
             return self.scalar(f"I{index}", f"{where}.index") * sp.eye(3)
         return lie.inertia_matrix([self.scalar(f"{k}{index}", f"{where}.index") for k in INERTIA_KEYS])

@@ -20,6 +20,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .._files import write_atomic
+from .._generated import GeneratedModule
+from ._module import generated_module
 
 log = logging.getLogger("jaxskid")
 
@@ -78,24 +80,24 @@ def load_module(text: str, origin: str) -> dict:
     return namespace
 
 
-def read_entry(path: Path, key: str) -> tuple[dict, str] | None:
-    """``(namespace, entry text)`` of the cache entry at ``path``, or None if there is none; an entry
-    that is unreadable, corrupted or another request's is logged and treated as missing."""
+def read_entry(path: Path, key: str) -> GeneratedModule | None:
+    """The module of the cache entry at ``path`` (its ``source``: the entry's text), or None if there is
+    none; an entry that is unreadable, corrupted or another request's is logged and treated as missing."""
     if not path.exists():
         return None
     try:
         entry = path.read_text()
-        namespace = load_module(unseal(entry, key), str(path))
+        module = generated_module(load_module(unseal(entry, key), str(path)), entry, path)
     except Exception as exc:  # corrupted entry: the caller regenerates it
         log.warning("jaxskid: cache entry %s is unreadable (%s); regenerating", path, exc)
         return None
     log.debug("jaxskid: loaded %s from the cache", path)
-    return namespace, entry
+    return module
 
 
-def store_entry(path: Path | None, module: str, key: str) -> tuple[dict, str]:
+def store_entry(path: Path | None, module: str, key: str) -> GeneratedModule:
     """Seal ``module``, load it and, when ``path`` is given, write it there (a failed write is logged:
-    the module still serves this process). Returns ``(namespace, entry text)``."""
+    the module still serves this process)."""
     entry = seal(module, key)
     namespace = load_module(module, str(path) if path else "<jaxskid>")
     if path is not None:
@@ -103,4 +105,4 @@ def store_entry(path: Path | None, module: str, key: str) -> tuple[dict, str]:
             write_atomic(path, entry)
         except OSError as exc:
             log.warning("jaxskid: could not write the cache entry %s (%s); it is used uncached", path, exc)
-    return namespace, entry
+    return generated_module(namespace, entry, path)

@@ -16,21 +16,23 @@ for a result of n^2 or n * 10 n entries, into select chains whose work grows wit
   L D L^T solve (:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation);
 * ``jaxskid_rk4_vjp``, the backward pass of a Runge-Kutta step built on it (:mod:`._ffi_rk4`).
 
-Long functions are split into pieces (:func:`_chunked`): GCC's register allocation is quadratic in a
-function's length. Handlers take float32 or float64 and compute in double. Nothing here knows SymPy: a
-build takes C text.
+The handlers' C is in the templates of ``jaxskid/lowering/c/`` (:mod:`._templates`); the kernels over
+vectors of states come printed from the program representation, as statements
+(:class:`jaxskid._generated.VectorKernel`). Long functions are split into pieces (:func:`_chunked`): GCC's
+register allocation is quadratic in a function's length. Handlers take float32 or float64 and compute in
+double. Nothing here knows SymPy: a build takes the C of a :class:`jaxskid._generated.NativeSource`.
 """
 
 from __future__ import annotations
 
-import functools
-import re
-from collections.abc import Mapping
 from pathlib import Path
+from typing import NamedTuple
 
+from .._generated import NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_rk4 import RK4_BACKWARD
 from ._native import CFLAGS
+from ._templates import fill, template
 
 FFI_CFLAGS = ("-fno-math-errno",)
 """Added to :data:`~jaxskid.lowering._native.CFLAGS`: ``sin`` and ``cos`` without ``errno`` are pure, so the
@@ -39,237 +41,66 @@ compiler computes each joint's once (the generated vector-Jacobian product repea
 TARGET = "jaxskid_fd_vjp"
 """The exported handler of a library built by :func:`jaxskid.lowering._ffi_build.ffi_library`."""
 
-_PRELUDE = r"""
-#define _POSIX_C_SOURCE 200112L
-#define _DEFAULT_SOURCE
-#include <math.h>
-#include <stdint.h>
-#include <stddef.h>
-#include <stdlib.h>
-#include <string.h>
-#include <sys/mman.h>
-#include "xla/ffi/api/c_api.h"
-#include "@STEM@.@INCLUDE@"  /* the scalar C where a kernel calls it (one translation unit), else its macros */
+_PRELUDE = template("ffi_prelude.c")
+"""What every library's handlers share: the includes, the sizes of the generated C, reading and writing
+float32 or float64 buffers, and the handlers' answer to XLA's metadata query."""
 
-#define N @STEM_UPPER@_NV  /* the velocity coordinates: n, or 6 + n with a floating base */
-#define NQ @STEM_UPPER@_NQ /* the configuration: n, or 7 + n */
-#define NP @STEM_UPPER@_N_PARAMS
-#define NP1 (NP > 0 ? NP : 1)
-
-static int64_t numel(const XLA_FFI_Buffer *b)
-{
-    int64_t n = 1;
-    for (int64_t i = 0; i < b->rank; i++) n *= b->dims[i];
-    return n;
-}
-
-static double load(const XLA_FFI_Buffer *b, int64_t i)
-{
-    return b->dtype == XLA_FFI_DataType_F64 ? ((const double *)b->data)[i] : ((const float *)b->data)[i];
-}
-
-static void store(XLA_FFI_Buffer *b, int64_t i, double x)
-{
-    if (b->dtype == XLA_FFI_DataType_F64) ((double *)b->data)[i] = x;
-    else ((float *)b->data)[i] = (float)x;
-}
-
-/* The instantiation stage asks for the handler's API version; 1 then, 0 to execute. */
-static int metadata(XLA_FFI_CallFrame *call)
-{
-    if (call->extension_start == NULL || call->extension_start->type != XLA_FFI_Extension_Metadata) return 0;
-    XLA_FFI_Metadata *meta = ((XLA_FFI_Metadata_Extension *)call->extension_start)->metadata;
-    meta->api_version.major_version = XLA_FFI_API_MAJOR;
-    meta->api_version.minor_version = XLA_FFI_API_MINOR;
-    meta->traits = 0;
-    return 1;
-}
-"""
-
-_BACKWARD = r"""
-#define NV @STEM_UPPER@_INVERSE_DYNAMICS_VJP_SIZE
-#define NO (N + NV)
-#define BACKWARD_CHUNK @BACKWARD_CHUNK@
-
-#ifdef LANES /* W states at once in vectors (GCC and Clang vector extensions), the functions rewritten below */
-#define W LANES
-typedef double T __attribute__((vector_size(8 * LANES)));
-#define LANE(x, l) ((x)[l])
-#define TLIFT(e) ((T){0} + (e))
-typedef long long TI __attribute__((vector_size(8 * LANES)));
-@TRIG_T@
-static inline T Tsin(T x) { return Ttrig(x, 0); }
-static inline T Tcos(T x) { return Ttrig(x, 1); }
-static inline T positive_or_nan(T s) { for (int l = 0; l < W; l++) if (!(s[l] > 0)) s[l] = NAN; return s; }
-@LANE_FUNCTIONS@
-#define MASS @STEM@_mass_matrix_T
-#define VJP @STEM@_inverse_dynamics_vjp_T
-#else
-#define W 1
-typedef double T;
-#define LANE(x, l) (x)
-static inline T positive_or_nan(T s) { return s > 0 ? s : NAN; }
-#define MASS @STEM@_mass_matrix
-#define VJP @STEM@_inverse_dynamics_vjp
-#endif
-
-/* lambda = M^-1 g by M = L D L^T (Golub & Van Loan, Alg. 4.1.2; a pivot <= 0 gives nan), then the
-   vector-Jacobian product of inverse dynamics at lambda, negated. out = [lambda (N), -vjp (NV)]. */
-static void backward(const T *q, const T *qd, const T *a, const T *g, const T *p, T *out)
-{
-    T m[N * N], d[N], y[N];
-    MASS(q, p, m);
-    for (int j = 0; j < N; j++) {
-        T s = m[j * N + j];
-        for (int k = 0; k < j; k++) s -= m[j * N + k] * m[j * N + k] * d[k];
-        d[j] = positive_or_nan(s);
-        for (int i = j + 1; i < N; i++) {
-            T t = m[i * N + j];
-            for (int k = 0; k < j; k++) t -= m[i * N + k] * m[j * N + k] * d[k];
-            m[i * N + j] = t / d[j];
-        }
-    }
-    for (int i = 0; i < N; i++) {
-        T s = g[i];
-        for (int k = 0; k < i; k++) s -= m[i * N + k] * y[k];
-        y[i] = s;
-    }
-    for (int i = N - 1; i >= 0; i--) {
-        T s = y[i] / d[i];
-        for (int k = i + 1; k < N; k++) s -= m[k * N + i] * out[k];
-        out[i] = s;
-    }
-    VJP(q, qd, a, out, p, out + N);
-    for (int i = N; i < NO; i++) out[i] = -out[i];
-}
-
-typedef struct {
-    const XLA_FFI_Buffer *in[5];
-    XLA_FFI_Buffer *res;
-    int64_t stride[5], batch;
-} backward_job;
-
-static const int64_t backward_size[5] = {NQ, N, N, N, NP};
-
-/* States [c BACKWARD_CHUNK, (c + 1) BACKWARD_CHUNK) of the batch. */
-static void backward_chunk(void *ctx, int64_t c, int slot)
-{
-    (void)slot;
-    const backward_job *j = (const backward_job *)ctx;
-    const int64_t from = c * BACKWARD_CHUNK, to = from + BACKWARD_CHUNK < j->batch ? from + BACKWARD_CHUNK : j->batch;
-    T q[NQ], qd[N], a[N], g[N], p[NP1], out[NO];
-    T *w[5] = {q, qd, a, g, p};
-    for (int64_t b = from; b < to; b += W) {
-        for (int l = 0; l < W; l++) {  /* a last partial group repeats its last state */
-            const int64_t s = b + l < to ? b + l : to - 1;
-            for (int i = 0; i < 5; i++)
-                for (int64_t k = 0; k < backward_size[i]; k++) LANE(w[i][k], l) = load(j->in[i], s * j->stride[i] + k);
-        }
-        backward(q, qd, a, g, p, out);
-        for (int l = 0; l < W && b + l < to; l++)
-            for (int k = 0; k < NO; k++) store(j->res, (b + l) * NO + k, LANE(out[k], l));
-    }
-}
-
-XLA_FFI_Error *jaxskid_fd_vjp(XLA_FFI_CallFrame *call)
-{
-    if (metadata(call) || call->stage != XLA_FFI_ExecutionStage_EXECUTE || call->args.size != 5 || call->rets.size != 1)
-        return NULL;
-    backward_job j;
-    for (int i = 0; i < 5; i++) {
-        j.in[i] = (const XLA_FFI_Buffer *)call->args.args[i];
-        j.stride[i] = numel(j.in[i]) == backward_size[i] ? 0 : backward_size[i];  /* one state's: shared by the batch */
-    }
-    j.res = (XLA_FFI_Buffer *)call->rets.rets[0];
-    j.batch = numel(j.res) / NO;
-    const int64_t chunks = (j.batch + BACKWARD_CHUNK - 1) / BACKWARD_CHUNK;
-    parallel_for(call, pool_threads(call, chunks), chunks, backward_chunk, &j);
-    return NULL;
-}
-"""
-
-_TRIG = r"""
-/* sin (quadrant 0) or cos (quadrant 1) of every lane: x = n pi/2 + r with |r| <= pi/4 (Cody & Waite's
-   three-part pi/2, exact products for |n| < 2^20), then the minimax polynomials of sin and cos on
-   [-pi/4, pi/4] (the coefficients of Moshier's Cephes library), chosen and signed by the quadrant.
-   Within 2 ulp of libm; lanes beyond 1e5 in magnitude, infinities and nan take libm's value. */
-static inline @V@ @V@trig(@V@ x, long long quadrant)
-{
-    const @V@ shifter = @V@LIFT(6755399441055744.0); /* 1.5 * 2^52: adding it rounds to an integer */
-    const @V@ n = (x * @V@LIFT(0.63661977236758134308) + shifter) - shifter;
-    @V@ r = x - n * @V@LIFT(1.57079632673412561417e+00);
-    r = r - n * @V@LIFT(6.07710050630396597660e-11);
-    r = r - n * @V@LIFT(2.02226624879595063154e-21);
-    const @V@ z = r * r;
-    @V@ ps = @V@LIFT(1.58962301576546568060e-10);
-    ps = ps * z + @V@LIFT(-2.50507477628578072866e-8);
-    ps = ps * z + @V@LIFT(2.75573136213857245213e-6);
-    ps = ps * z + @V@LIFT(-1.98412698295895385996e-4);
-    ps = ps * z + @V@LIFT(8.33333333332211858878e-3);
-    ps = ps * z + @V@LIFT(-1.66666666666666307295e-1);
-    const @V@ s = r + r * z * ps;
-    @V@ pc = @V@LIFT(-1.13585365213876817300e-11);
-    pc = pc * z + @V@LIFT(2.08757008419747316778e-9);
-    pc = pc * z + @V@LIFT(-2.75573141792967388112e-7);
-    pc = pc * z + @V@LIFT(2.48015872888517045348e-5);
-    pc = pc * z + @V@LIFT(-1.38888888888730564116e-3);
-    pc = pc * z + @V@LIFT(4.16666666666665929218e-2);
-    const @V@ c = @V@LIFT(1.0) - @V@LIFT(0.5) * z + z * z * pc;
-    const @V@I k = __builtin_convertvector(n, @V@I) + quadrant;
-    const @V@I odd = (k & 1) != 0, negative = (k & 2) != 0;
-    const @V@I sign = (@V@I){0} + (long long)(1ULL << 63);
-    @V@ out = (@V@)((((@V@I)c) & odd) | (((@V@I)s) & ~odd));
-    out = (@V@)(((@V@I)out) ^ (negative & sign));
-    for (int l = 0; l < (int)(sizeof(@V@) / sizeof(double)); l++)
-        if (!(x[l] > -1e5 && x[l] < 1e5)) out[l] = quadrant ? cos(x[l]) : sin(x[l]);
-    return out;
-}
-
-/* sign(x) of every lane, -1, 0 or 1 (the generated C's copysign((double)(x != 0), x); a comparison of vectors
-   gives -1 where it holds) */
-static inline @V@ @V@sign(@V@ x)
-{
-    return __builtin_convertvector((x < @V@LIFT(0.0)) - (x > @V@LIFT(0.0)), @V@);
-}
-"""
+_TRIG = template("ffi_trig.h")
 """Lane-wise sine, cosine and sign of a vector type ``@V@`` (with ``@V@LIFT`` and the integer vector ``@V@I``): the
 quantity kernels' (``V``) and the backward step's (``T``; with libm per lane it spent about a third of its
 time in ``sin`` and ``cos``)."""
 
-_BACKWARD = _BACKWARD.replace("@TRIG_T@", _TRIG.replace("@V@", "T")).replace("@BACKWARD_CHUNK@", str(BACKWARD_CHUNK))
-_GENERIC = GENERIC.replace("@TRIG_V@", _TRIG.replace("@V@", "V"))
+_BACKWARD = fill(template("ffi_backward.c"), TRIG_T=fill(_TRIG, V="T"), BACKWARD_CHUNK=BACKWARD_CHUNK)
+"""The backward step of forward dynamics, ``jaxskid_fd_vjp``, with ``@LANE_FUNCTIONS@`` for the vector forms
+of the mass matrix and the inverse dynamics' vector-Jacobian product."""
+
+_GENERIC = fill(GENERIC, TRIG_V=fill(_TRIG, V="V"))
+
+
+
+
 
 LANES = 4
 """States computed at once by the kernel, in vectors of doubles (AVX2 registers where the machine has them)."""
 
-_CALL = re.compile(r"\b([A-Za-z_]\w*)\s*\(")
-_SIGN = re.compile(r"copysign\(\(double\)\(\((\w+)\) != 0\), \1\)")
-"""The generated C's ``sign(x)`` (drives' Coulomb friction), rewritten to the lane-wise ``<vec>sign``."""
+def lane_functions(native: NativeSource, names: tuple[str, ...], vec: str = "T",
+                   drop_zeros: bool = False) -> list[str | Piece] | None:
+    """The functions ``<stem>_<name>_<vec>`` of the quantities ``names`` over vectors of ``LANES`` states, of
+    the vector type ``vec`` (their :class:`~jaxskid._generated.VectorKernel`, printed from the generated
+    program by :func:`jaxskid.codegen._c.vector_kernel`, split by :func:`_chunked`). ``drop_zeros``: the
+    assignments of the outputs that are always zero are left out (:func:`_scattered`). The C, as text and
+    the :class:`Piece` objects of long kernels; None when one of them has no vector form (the scalar kernel
+    or the JAX function serves)."""
+    out: list[str | Piece] = []
+    for k, name in enumerate(names):
+        kernel = native.vectors.get(name)
+        if kernel is None:
+            return None
+        out += ["\n"] * (k > 0)
+        out += _chunked(f"{native.stem}_{name}_{vec}", kernel, vec, set(kernel.zeros) if drop_zeros else set())
+    return out
 
 
-def lane_functions(source: str, stem: str, names: tuple[str, ...], vec: str = "T") -> str | None:
-    """The generated C functions ``<stem>_<name>`` of ``source`` rewritten over vectors of ``LANES`` states
-    (``<stem>_<name>_<vec>``, of the vector type ``vec``): every ``double`` becomes ``vec``, ``sin``/``cos``
-    the glue's lane-wise ``<vec>sin``/``<vec>cos``, a right-hand side that is a number is made a vector
-    (``<vec>LIFT``), ``sign`` (:data:`_SIGN`) the lane-wise ``<vec>sign``. None when a body calls any other
-    function or has a conditional (the scalar kernel or the JAX function serves)."""
-    out = []
-    for name in names:
-        fn = f"{stem}_{name}"
-        m = re.search(rf"^void {fn}\((.*?)\)\n\{{\n(.*?)^\}}\n", source, re.M | re.S)
-        if m is None:
-            return None
-        params, body = m.group(1), m.group(2)
-        body = _SIGN.sub(rf"{vec}sign(\1)", body)
-        if "?" in body or set(_CALL.findall(body)) - {"sin", "cos", f"{vec}sign"}:
-            return None
-        params = params.replace("const double *", f"const {vec} *").replace("double *out", f"{vec} *out")
-        body = re.sub(r"\bconst double\b", f"const {vec}", body)
-        body = re.sub(r"\b(sin|cos)\(", rf"{vec}\1(", body)
-        body = re.sub(r"^(\s*[^=\n]+?) = (.+);$", functools.partial(_lift_constant, lift=f"{vec}LIFT"), body,
-                      flags=re.M)
-        out.append(_chunked(f"{fn}_{vec}", params, body, vec))
-    return "\n".join(out)
+class Piece(NamedTuple):
+    """A piece of a long kernel (:func:`_chunked`), ``static __attribute__((noinline)) void name(params)``
+    with its ``body`` (braces included); a split build (:func:`jaxskid.lowering._ffi_build.split`) defines it
+    in one translation unit and declares it in the others."""
+
+    name: str
+    params: str
+    body: str
+
+    def text(self) -> str:
+        return f"static __attribute__((noinline)) void {self.name}({self.params})\n{self.body}"
+
+
+def _line(s: Statement, vec: str) -> str:
+    """One statement of a vector kernel as C."""
+    if s.kind == "unused":
+        return f"    (void){s.name};"
+    if s.kind == "output":
+        return f"    out[{s.name}] = {fill(s.value, V=vec)};"
+    return f"    const {vec} {s.name} = {fill(s.value, V=vec)};"
 
 
 CHUNK = 256
@@ -285,71 +116,60 @@ regressor, 11,000, measured with both libraries in one process, alternated), whi
 lowering of such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices),
 and their build is short anyway."""
 
-_DEF = re.compile(r"^\s*const (\w+) (\w+) = (.*);$")
-_NAME = re.compile(r"\b[A-Za-z_]\w*\b")
-
-
-def _chunked(name: str, params: str, body: str, vec: str) -> str:
-    """The function ``name(params)`` with ``body``, split into functions of :data:`CHUNK` statements that
-    pass the values later pieces read through a workspace. GCC's register allocator takes time quadratic in
-    a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7 minutes at ``-O1``); pieces of a few
-    hundred statements compile in linear time, and only the values that cross a boundary go to memory."""
-    lines = body.splitlines()
-    if len(lines) <= LONG:
-        return f"static void {name}({params})\n{{\n{body}}}\n"
+def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> list[str | Piece]:
+    """The function ``name`` of ``kernel``, split into functions of :data:`CHUNK` statements that pass the
+    values later pieces read through a workspace; the outputs ``zeros`` are not assigned. GCC's register
+    allocator takes time quadratic in a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7
+    minutes at ``-O1``); pieces of a few hundred statements compile in linear time, and only the values that
+    cross a boundary go to memory."""
+    params = ", ".join([*(f"const {vec} *{a}" for a in kernel.args), f"{vec} *out"])
+    statements = kernel.statements
+    kept = [s.kind != "output" or int(s.name) not in zeros for s in statements]
+    if len(statements) <= LONG:
+        body = "".join(_line(s, vec) + "\n" for s, keep in zip(statements, kept) if keep)
+        return [f"static void {name}({params})\n{{\n{body}}}\n"]
     defined: dict[str, int] = {}  # variable -> the chunk defining it
     inputs: dict[str, str] = {}  # variable -> its definition, for the reads of an input entry (read again)
-    reads: list[set[str]] = []
-    for k, line in enumerate(lines):
-        m = _DEF.match(line)
-        rhs = m.group(3) if m else line.split("=", 1)[-1]
-        reads.append({v for v in _NAME.findall(rhs) if v in defined})
-        if m:
-            defined[m.group(2)] = k // CHUNK
-            if re.fullmatch(r"\w+\[\d+\]", m.group(3)):
-                inputs[m.group(2)] = line
+    for k, s in enumerate(statements):
+        if s.kind in ("input", "define"):
+            defined[s.name] = k // CHUNK
+            if s.kind == "input":
+                inputs[s.name] = _line(s, vec)
     slots: dict[str, int] = {}
-    for k, used in enumerate(reads):
-        for v in sorted(used):
+    for k, s in enumerate(statements):
+        for v in s.reads:
             if defined[v] < k // CHUNK and v not in slots and v not in inputs:
                 slots[v] = len(slots)
-    args = ", ".join(re.findall(r"(\w+)(?:,|$)", params))
+    args = ", ".join([*kernel.args, "out"])
     pieces, calls = [], []
-    for c in range(0, len(lines), CHUNK):
-        chunk = lines[c:c + CHUNK]
+    for c in range(0, len(statements), CHUNK):
+        chunk = range(c, min(c + CHUNK, len(statements)))
         # inputs (no slot) by name: an order that a set's (which varies with each process's string hashes) would
         # give makes a new source, and a new build, in every process
-        needed = sorted({v for used in reads[c:c + CHUNK] for v in used if defined[v] < c // CHUNK},
+        needed = sorted({v for k in chunk for v in statements[k].reads if defined[v] < c // CHUNK},
                         key=lambda v: (slots.get(v, -1), v))
         text = [inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed]
-        for line in chunk:
-            text.append(line)
-            m = _DEF.match(line)
-            if m and m.group(2) in slots:
-                text.append(f"    w[{slots[m.group(2)]}] = {m.group(2)};")
+        for k in chunk:
+            s = statements[k]
+            if kept[k]:
+                text.append(_line(s, vec))
+            if s.kind == "define" and s.name in slots:
+                text.append(f"    w[{slots[s.name]}] = {s.name};")
         piece = f"{name}_{c // CHUNK}"
-        pieces.append(f"static __attribute__((noinline)) void {piece}({params}, {vec} *w)\n{{\n"
-                      + "\n".join(text) + "\n}\n")
+        pieces.append(Piece(piece, f"{params}, {vec} *w", "{\n" + "\n".join(text) + "\n}\n"))
         calls.append(f"    {piece}({args}, w);")
     workspace = f"    {vec} w[{max(len(slots), 1)}];"
-    if len(lines) > HUGE:
+    if len(statements) > HUGE:
         pieces = [_OG_PUSH, *pieces, _OG_POP]
-    return "\n".join(pieces) + f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"
+    out: list[str | Piece] = []
+    for k, piece in enumerate(pieces):
+        out += ["\n"] * (k > 0) + [piece]
+    return out + [f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"]
 
 
 _OG_PUSH = '#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC push_options\n#pragma GCC optimize ("Og")\n#endif'
 _OG_POP = "#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC pop_options\n#endif"
 """Around the pieces of a body longer than :data:`HUGE` statements: GCC compiles them at ``-Og``."""
-
-
-_NUMBER = re.compile(r"\b\d+\.?\d*(?:[eE][-+]?\d+)?\b|\.\d+(?:[eE][-+]?\d+)?")
-
-
-def _lift_constant(m: re.Match, lift: str) -> str:
-    """An assignment whose right-hand side names no variable (a number: ``out[3] = 0.0;``) made a vector;
-    the others already are (``0 + x`` is not folded in IEEE arithmetic, so nothing else is lifted)."""
-    target, rhs = m.group(1), m.group(2)
-    return f"{target} = {rhs};" if re.search(r"[A-Za-z_]", _NUMBER.sub("", rhs)) else f"{target} = {lift}({rhs});"
 
 
 def _vector_flags() -> tuple[str, ...]:
@@ -368,20 +188,22 @@ def include_dir() -> str:
     return jax.ffi.include_dir()
 
 
-_ZERO_OUTPUT = re.compile(r"^\s*out\[(\d+)\] = VLIFT\([-+]?0*\.?0*(?:[eE][-+]?\d+)?\);\n", re.M)
+def _scattered(kernel: VectorKernel) -> bool:
+    """Whether at least :data:`SCATTER` of a kernel's outputs are zero for every state: the handler then zeroes
+    each result row and writes only the others (and the kernel does not assign the zeros)."""
+    n_out = sum(s.kind == "output" for s in kernel.statements)
+    return len(kernel.zeros) >= SCATTER * n_out
 
 
-def _without_zeros(vector: str, name: str, n_out: int) -> tuple[str, str, str, str]:
-    """When at least :data:`SCATTER` of a kernel's entries are assigned a literal zero: the kernel without
-    those assignments and the C of the indices of the other entries, ``(kernel, declaration, pointer,
-    count)``; the handler then zeroes each result row and writes only those. Otherwise the kernel as it is."""
-    zeros = {int(k) for k in _ZERO_OUTPUT.findall(vector)}
-    if len(zeros) < SCATTER * n_out:
-        return vector, "", "NULL", "0"
-    keep = [k for k in range(n_out) if k not in zeros]
+def _nonzero(kernel: VectorKernel, name: str) -> tuple[str, str, str]:
+    """The C of the indices of a scattered kernel's other entries, ``(declaration, pointer, count)``, or
+    ``("", "NULL", "0")`` for a kernel that writes every entry."""
+    if not _scattered(kernel):
+        return "", "NULL", "0"
+    n_out = sum(s.kind == "output" for s in kernel.statements)
+    keep = [k for k in range(n_out) if k not in set(kernel.zeros)]
     values = ", ".join(map(str, keep)) or "0"
-    return (_ZERO_OUTPUT.sub("", vector), f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}",
-            str(len(keep)))
+    return f"static const int32_t nz_{name}[] = {{{values}}};", f"nz_{name}", str(len(keep))
 
 
 SCATTER = 0.75
@@ -390,32 +212,38 @@ entries. The G1's regressor (84 % zeros) runs and builds faster that way; its Co
 ran slower that way than with one sequential copy of every entry (``benchmarks/scaling.py --robots g1``)."""
 
 
-def glue_source(native: Mapping) -> tuple[str, bool]:
-    """The C of a library's handlers (it includes the generated ``<stem>.c``) and whether the backward
-    kernel computes in vectors: the backward step when ``native["backward"]``, and a handler
-    ``jaxskid_<name>`` per entry of ``native["kernels"]`` whose C has a vector form (the others are left
-    out; the JAX function serves them)."""
-    stem = native["stem"]
-    parts = [_PRELUDE, POOL]
+def glue_source(native: NativeSource) -> tuple[str, bool]:
+    """The C of a library's handlers as one translation unit (see :func:`glue_parts`) and whether the
+    backward kernel computes in vectors."""
+    parts, lanes = glue_parts(native)
+    return "".join(p.text() if isinstance(p, Piece) else p for p in parts), lanes
+
+
+def glue_parts(native: NativeSource) -> tuple[list[str | Piece], bool]:
+    """The C of a library's handlers (it includes the generated ``<stem>.c``), as text and the
+    :class:`Piece` objects of long kernels, and whether the backward kernel computes in vectors: the
+    backward step when ``native.backward``, and a handler ``jaxskid_<name>`` per entry of ``native.kernels``
+    whose C has a vector form (the others are left out; the JAX function serves them)."""
+    stem = native.stem
+    parts: list[str | Piece] = [_PRELUDE, POOL]
     lanes = None
-    if native.get("backward"):
-        lanes = lane_functions(native["source"], stem, ("mass_matrix", "inverse_dynamics_vjp"))
-        parts += [_BACKWARD.replace("@LANE_FUNCTIONS@", lanes or ""), RK4_BACKWARD]
-    quantities = []
-    for name, sizes, cores, n_out, out_rank in native.get("kernels", ()):
-        vector = lane_functions(native["source"], stem, (name,), vec="V")
-        if vector is None:
+    if native.backward:
+        lanes = lane_functions(native, ("mass_matrix", "inverse_dynamics_vjp"))
+        before, _, after = _BACKWARD.partition("@LANE_FUNCTIONS@")
+        parts += [before, *(lanes or ()), after, RK4_BACKWARD]
+    quantities: list[str | Piece] = []
+    for name, sizes, cores, n_out, out_rank in native.kernels:
+        kernel = native.vectors.get(name)
+        if kernel is None:
             continue
+        quantities += lane_functions(native, (name,), vec="V", drop_zeros=_scattered(kernel))
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
-        vector, nonzero, nz, n_nz = _without_zeros(vector, name, n_out)
-        quantities.append(vector + QUANTITY.replace("@NONZERO@", nonzero).replace("@NZ@", nz).replace("@N_NZ@", n_nz)
-                          .replace("@NAME@", name).replace("@ARGS@", args)
-                          .replace("@SIZES@", ", ".join(map(str, sizes))).replace("@CORES@", ", ".join(map(str, cores)))
-                          .replace("@N_IN@", str(len(sizes))).replace("@N_OUT@", str(n_out))
-                          .replace("@OUT_RANK@", str(out_rank)))
+        nonzero, nz, n_nz = _nonzero(kernel, name)
+        quantities.append(fill(QUANTITY, NONZERO=nonzero, NZ=nz, N_NZ=n_nz, NAME=name, ARGS=args,
+                               SIZES=", ".join(map(str, sizes)), CORES=", ".join(map(str, cores)),
+                               N_IN=len(sizes), N_OUT=n_out, OUT_RANK=out_rank))
     if quantities:
         parts += [_GENERIC, *quantities]
-    scalar = native.get("backward") and lanes is None
-    glue = "".join(parts).replace("@INCLUDE@", "c" if scalar else "h")
-    glue = glue.replace("@STEM_UPPER@", stem.upper()).replace("@STEM@", stem)
-    return glue, lanes is not None
+    scalar = native.backward and lanes is None
+    names = dict(INCLUDE="c" if scalar else "h", STEM_UPPER=stem.upper(), STEM=stem)
+    return [p if isinstance(p, Piece) else fill(p, **names) for p in parts], lanes is not None

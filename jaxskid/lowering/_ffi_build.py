@@ -8,21 +8,37 @@ from __future__ import annotations
 
 import concurrent.futures
 import os
-import re
 import shutil
 import subprocess
 import threading
-from collections.abc import Mapping
+import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
-from ._ffi import FFI_CFLAGS, LANES, _vector_flags, glue_source, include_dir
+from .._generated import NativeSource
+from ._ffi import FFI_CFLAGS, LANES, Piece, _vector_flags, glue_parts, include_dir
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 
 
-def ffi_library(native: Mapping, root: Path) -> Path:
+@dataclass(frozen=True)
+class NativeLibrary:
+    """One native library of a lowering (:class:`jaxskid._generated.NativeBuild`): its generated C and the
+    folder it is built in (None: a temporary folder, when the cache is off). :func:`jaxskid.lower` gives
+    these to :class:`jaxskid.Dynamics`, which builds each when it first needs one of its kernels."""
+
+    sources: NativeSource
+    root: Path | None = None
+
+    def build(self) -> Path:
+        """The built library's path (:func:`ffi_library`)."""
+        root = self.root if self.root is not None else Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
+        return ffi_library(self.sources, root)
+
+
+def ffi_library(native: NativeSource, root: Path) -> Path:
     """Build (once per machine: keyed by a hash of everything that goes in) the shared library of the
-    handlers of :func:`glue_source` for ``native`` (``{"stem", "header", "source", "backward", "kernels"}``,
-    the generated C of :func:`jaxskid.codegen._c.native_sources`), under ``root``; when
+    handlers of :func:`glue_source` for ``native`` (the generated C of
+    :func:`jaxskid.codegen._c.native_sources`), under ``root``; when
     :func:`ffi_library_soon` already started that build, wait for it.
 
     Raises:
@@ -34,7 +50,7 @@ def ffi_library(native: Mapping, root: Path) -> Path:
     return pending.result() if pending is not None else _build(*plan)
 
 
-def ffi_library_soon(native: Mapping, root: Path, later: bool = False) -> None:
+def ffi_library_soon(native: NativeSource, root: Path, later: bool = False) -> None:
     """Start :func:`ffi_library` in a background thread and return at once: the compiler runs in its own
     process while the caller goes on (printing the JAX module). A build that cannot start is left to
     :func:`ffi_library`, which reports it. ``later``: the library serves only what is used later (the
@@ -61,20 +77,20 @@ _PENDING: dict[Path, concurrent.futures.Future] = {}  # builds started by ffi_li
 _POOL: concurrent.futures.ThreadPoolExecutor | None = None
 
 
-def _plan(native: Mapping, root: Path) -> tuple:
+def _plan(native: NativeSource, root: Path) -> tuple:
     """``(library path, stem, header, source, glue, compiler command but its output)`` of :func:`ffi_library`."""
-    stem = native["stem"]
-    glue, lanes = glue_source(native)
-    vectors = lanes or native.get("kernels")
+    stem = native.stem
+    glue, lanes = glue_parts(native)
+    vectors = lanes or native.kernels
     flags = (*CFLAGS, *FFI_CFLAGS, *((f"-DLANES={LANES}",) if lanes else ()), *(_vector_flags() if vectors else ()))
     inc = include_dir()
     if not (Path(inc) / "xla" / "ffi" / "api" / "c_api.h").exists():
         raise BuildError(f"jaxlib has no FFI header under {inc}")
     cc = _compiler()
     glue, parts = split(glue, _cores())
-    key = _key("ffi", cc, " ".join(flags), inc, native["header"], native["source"], glue, str(parts))
+    key = _key("ffi", cc, " ".join(flags), inc, native.header, native.source, glue, str(parts))
     final = root / key[:24] / f"lib{stem}_ffi.so"
-    return final, stem, native["header"], native["source"], glue, (*cc.split(), *flags, "-I", inc), parts
+    return final, stem, native.header, native.source, glue, (*cc.split(), *flags, "-I", inc), parts
 
 
 def _build(final: Path, stem: str, header: str, source: str, glue: str, command: tuple, parts: int,
@@ -113,31 +129,28 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
-_PIECE = re.compile(r"^static __attribute__\(\(noinline\)\) void (\w+)\((.*?)\)\n\{\n.*?^\}\n", re.M | re.S)
-_HANDLER = re.compile(r"^XLA_FFI_Error \*jaxskid_\w+\(XLA_FFI_CallFrame \*call\)\n\{\n.*?^\}\n", re.M | re.S)
-
-
-def split(glue: str, cores: int) -> tuple[str, int]:
-    """``(glue, parts)``: the glue as ``parts`` translation units, one per core (at most 4), each compiled
-    with ``-DJAXSKID_PART=k``. The pieces of long kernels are dealt out to the parts by length; a part
-    defines its own and declares the others. The handlers are part 0's, and everything else a part does not
-    call is static and dropped by the compiler. Without the macro the glue is one translation unit. Fewer
-    than two pieces, or one core: one part. The build of the G1's Coriolis matrix (17 pieces) in one process
-    was the critical path of its cold lowering: the Python side finished before it."""
-    pieces = list(_PIECE.finditer(glue))
+def split(glue: list[str | Piece], cores: int) -> tuple[str, int]:
+    """``(glue, parts)``: the glue (:func:`._ffi.glue_parts`) as ``parts`` translation units, one per core (at
+    most 4), each compiled with ``-DJAXSKID_PART=k``. The pieces of long kernels are dealt out to the parts by
+    length; a part defines its own and declares the others. The handlers are part 0's (the templates guard
+    them with ``#if JAXSKID_PART == 0``), and everything else a part does not call is static and dropped by the
+    compiler. Without the macro the glue is one translation unit. Fewer than two pieces, or one core: one
+    part. The build of the G1's Coriolis matrix (17 pieces) in one process was the critical path of its cold
+    lowering: the Python side finished before it."""
+    pieces = [p for p in glue if isinstance(p, Piece)]
     parts = min(cores, len(pieces), 4)
     if parts < 2:
-        return glue, 1
+        return "".join(p.text() if isinstance(p, Piece) else p for p in glue), 1
     load, owner = [0] * parts, {}
-    for m in sorted(pieces, key=lambda m: -len(m.group(0))):
+    for p in sorted(pieces, key=lambda p: -len(p.text())):
         k = load.index(min(load))
-        owner[m.group(1)] = k
-        load[k] += len(m.group(0))
+        owner[p.name] = k
+        load[k] += len(p.text())
 
-    def piece(m: re.Match) -> str:
-        name, params = m.group(1), m.group(2)
-        body = m.group(0).replace("static __attribute__((noinline))", "PIECE", 1)
-        return f"#if JAXSKID_PART == {owner[name]}\n{body}#else\nPIECE void {name}({params});\n#endif\n"
+    def text(p: str | Piece) -> str:
+        if not isinstance(p, Piece):
+            return p
+        return (f"#if JAXSKID_PART == {owner[p.name]}\nPIECE void {p.name}({p.params})\n{p.body}#else\n"
+                f"PIECE void {p.name}({p.params});\n#endif\n")
 
-    glue = _HANDLER.sub(lambda m: f"#if JAXSKID_PART == 0\n{m.group(0)}#endif\n", _PIECE.sub(piece, glue))
-    return '#define PIECE __attribute__((noinline, visibility("hidden")))\n' + glue, parts
+    return '#define PIECE __attribute__((noinline, visibility("hidden")))\n' + "".join(map(text, glue)), parts

@@ -10,6 +10,7 @@ The names below are imported on first use: ``_parameters`` is sympy-free and ser
 must not import SymPy by importing this package.
 """
 
+import warnings
 from importlib import import_module
 
 _EXPORTS = {
@@ -29,12 +30,19 @@ _EXPORTS = {
     "spatial_to_body": "_robot",
     "symbol": "_validate",
     "to_expr": "_validate",
-    "validate": "_validate",
+    "check_model": "_validate",
 }
+_DEPRECATED = {"validate": ("check_model", "jaxskid.validate is the validation of an identified model against data")}
+"""Old names, kept for a while with a DeprecationWarning: name -> (its new name, why it changed)."""
 __all__ = sorted(_EXPORTS)
 
 
 def __getattr__(name: str):
+    if name in _DEPRECATED:
+        new, why = _DEPRECATED[name]
+        warnings.warn(f"jaxskid.model.{name} is deprecated: use jaxskid.model.{new} ({why})", DeprecationWarning,
+                      stacklevel=2)
+        name = new
     if name not in _EXPORTS:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     return getattr(import_module(f"{__name__}.{_EXPORTS[name]}"), name)

@@ -18,6 +18,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .._errors import ModelError
+from ._lie import AXES
 from ._validate import numeric
 
 TOL = 1e-6
@@ -105,8 +106,6 @@ def _cross_matrix(p: np.ndarray) -> np.ndarray:
 
 def _rows(tree: _Tree, c, anchor, q, base) -> tuple[np.ndarray, np.ndarray]:
     """(phi, d phi) of one constraint (rotation rows: the axis of the skew part of ``R_a R_b^T``)."""
-    from ._constraint import AXES
-
     poses = tree.poses(q, base)
     pa, body_a = tree.frame(c.frames[0], poses, base)
     if c.frames[1] is None:

@@ -36,10 +36,9 @@ import sympy as sp
 
 from .._errors import ModelError
 from . import _lie as lie
-from ._validate import check_pose, describe, to_expr
-
-AXES = ("rx", "ry", "rz", "x", "y", "z")
-"""The constraint directions, world-aligned: rotations about, then translations along, the world axes."""
+from ._closure import check_satisfiable
+from ._lie import AXES
+from ._validate import check_pose, describe_value, matrix, to_expr
 
 KINDS = {"point": AXES[3:], "frame": AXES}
 """The named sets of axes of a :class:`LoopClosure`."""
@@ -78,7 +77,7 @@ class PointContact:
         except TypeError:
             values = None
         if values is None or len(values) != 3:
-            raise ModelError(f"expected 3 values (x, y, z), got {describe(self.position)}", where=f"{where}.position")
+            raise ModelError(f"expected 3 values (x, y, z), got {describe_value(self.position)}", where=f"{where}.position")
         return lie.pose(None, [to_expr(v, where=f"{where}.position[{k}]") for k, v in enumerate(values)])
 
     def mapped(self, fn: Callable) -> "PointContact":
@@ -115,9 +114,7 @@ class FrameContact:
     def _given(self, where: str) -> sp.Matrix | None:
         if self.pose is None:
             return None
-        from ._robot import _matrix  # the one reader of matrices of the model
-
-        return _matrix(self.pose, (4, 4), f"{where}.pose")
+        return matrix(self.pose, (4, 4), f"{where}.pose")
 
     def mapped(self, fn: Callable) -> "FrameContact":
         return replace(self, pose=None if self.pose is None else sp.ImmutableMatrix(sp.Matrix(self.pose).applyfunc(fn)))
@@ -170,15 +167,13 @@ def check_constraints(robot, constraints: Sequence, values: Mapping) -> tuple[Co
     of :data:`AXES`, contacts' anchors computed and ``at`` cleared; then checked to be satisfiable near the
     reference configuration with the default parameter ``values`` (symbol -> number). Errors name
     ``constraints[k]`` and the key."""
-    from ._closure import check_satisfiable
-
     if isinstance(constraints, CONSTRAINT_TYPES) or not isinstance(constraints, Sequence):
-        raise ModelError(f"expected a list of constraints, got {describe(constraints)}", where="constraints")
+        raise ModelError(f"expected a list of constraints, got {describe_value(constraints)}", where="constraints")
     out, starts = [], []
     for k, c in enumerate(constraints):
         where = f"constraints[{k}]"
         if not isinstance(c, CONSTRAINT_TYPES):
-            raise ModelError(f"expected a PointContact, FrameContact or LoopClosure, got {describe(c)}", where=where)
+            raise ModelError(f"expected a PointContact, FrameContact or LoopClosure, got {describe_value(c)}", where=where)
         bodies = [_body(robot, name, f"{where}.{key}") if name is not None else None
                   for name, key in zip(c.frames, _frame_keys(c))]
         _check_bodies(robot, c, bodies, where)
@@ -203,7 +198,7 @@ def _frame_keys(c) -> tuple[str, str]:
 
 def _body(robot, name, where: str) -> int:
     if not isinstance(name, str):
-        raise ModelError(f"expected a frame name, got {describe(name)}", where=where)
+        raise ModelError(f"expected a frame name, got {describe_value(name)}", where=where)
     try:
         return robot.frame(name).body
     except ModelError as exc:
@@ -230,7 +225,7 @@ def _axes(given, allowed: Sequence[str], where: str) -> tuple[str, ...]:
     """A non-empty subset of ``allowed`` without repeats, in the order of :data:`AXES`."""
     items = [given] if isinstance(given, str) else given
     if not isinstance(items, (list, tuple)) or not items:
-        raise ModelError(f"expected a list of axes from {', '.join(allowed)}, got {describe(given)}", where=where)
+        raise ModelError(f"expected a list of axes from {', '.join(allowed)}, got {describe_value(given)}", where=where)
     for k, a in enumerate(items):
         if a not in allowed:
             raise ModelError(f"unknown axis {a!r}; expected some of {', '.join(allowed)}", where=f"{where}[{k}]")
@@ -253,7 +248,7 @@ def _configuration(robot, at, where: str) -> dict[str, sp.Expr]:
     if at is None:
         return {}
     if not isinstance(at, Mapping):
-        raise ModelError(f"expected a mapping of joint names to positions, got {describe(at)}", where=where)
+        raise ModelError(f"expected a mapping of joint names to positions, got {describe_value(at)}", where=where)
     out = {}
     for name, value in at.items():
         if name not in robot.joint_names:

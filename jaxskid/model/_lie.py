@@ -18,6 +18,10 @@ import sympy as sp
 
 from . import _spatial
 
+AXES = ("rx", "ry", "rz", "x", "y", "z")
+"""The directions of a constraint's rows (:mod:`jaxskid.model._constraint`), world-aligned: rotations about,
+then translations along, the world axes, in the order of a twist's (omega, v)."""
+
 Matrix = sp.ImmutableMatrix
 
 

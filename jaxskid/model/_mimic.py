@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .._errors import ModelError
-from ._validate import describe, differ, to_expr
+from ._validate import describe_value, differ, to_expr
 
 
 @dataclass(frozen=True)
@@ -55,11 +55,11 @@ class Mimic:
         elif isinstance(value, Mimic):
             value = (value.joint, value.multiplier, value.offset)
         if not isinstance(value, (tuple, list)) or not 1 <= len(value) <= 3:
-            raise ModelError(f"expected a Mimic, a joint name or (joint, multiplier, offset), got {describe(value)}",
+            raise ModelError(f"expected a Mimic, a joint name or (joint, multiplier, offset), got {describe_value(value)}",
                              where=where)
         joint, multiplier, offset = (*value, *(None, 1, 0)[len(value):])
         if not isinstance(joint, str) or not joint:
-            raise ModelError(f"expected the name of a joint, got {describe(joint)}", where=f"{where}.joint")
+            raise ModelError(f"expected the name of a joint, got {describe_value(joint)}", where=f"{where}.joint")
         return cls(joint, _number(multiplier, f"{where}.multiplier"), _number(offset, f"{where}.offset"))
 
 

@@ -38,7 +38,8 @@ from ._fixed import lock_joint, merge_fixed
 from ._joint import Frame, Joint, JointLimits
 from ._lie import spatial_to_body
 from ._mimic import Mimic, follow_locks, resolve
-from ._validate import check_defaults, check_mass_inertia, check_parents, describe, symbol, to_expr, validate
+from ._validate import (check_defaults, check_mass_inertia, check_model, check_parents, describe_value, matrix, symbol,
+                        to_expr)
 
 __all__ = ["JOINT_TYPES", "Drive", "Frame", "Joint", "JointLimits", "Mimic", "Robot", "spatial_to_body", "symbol", "to_expr"]
 
@@ -124,7 +125,7 @@ class Robot:
             raise ModelError(f"expected 3 values, got {len(gravity)}", where="gravity")
         gravity = tuple(to_expr(g, where=f"gravity[{k}]") for k, g in enumerate(gravity))
         clean = check_defaults(defaults or {})
-        validate(joints, frames, gravity, end_effectors, clean, base)
+        check_model(joints, frames, gravity, end_effectors, clean, base)
         if base_inertia is not None:
             check_mass_inertia(base_inertia, {symbol(k): v for k, v in clean.items()}, "base_inertia")
         joints = _resolve_mimics(joints)
@@ -434,8 +435,8 @@ def _normalize_joint(j: Joint, i: int) -> Joint:
         raise ModelError(
             f"unknown joint type {j.type!r}; expected one of revolute, prismatic, fixed", where=f"{where}.type"
         )
-    origin = _matrix(j.origin, (4, 4), f"{where}.origin")
-    inertia = _matrix(j.inertia, (6, 6), f"{where}.inertia")
+    origin = matrix(j.origin, (4, 4), f"{where}.origin")
+    inertia = matrix(j.inertia, (6, 6), f"{where}.inertia")
     screw = list(j.screw) if j.type != "fixed" or j.screw is not None else [0] * 6
     if len(screw) != 6:
         raise ModelError(f"expected 6 screw coordinates, got {len(screw)}", where=f"{where}.screw")
@@ -458,7 +459,7 @@ def _normalize_base(floating_base, base_inertia) -> tuple[bool, sp.ImmutableMatr
     """``(floating_base, base_inertia)`` checked: a bool, and a 6x6 matrix (zero if not given) for a floating
     base, ``None`` for a fixed one."""
     if not isinstance(floating_base, (bool, np.bool_)):
-        raise ModelError(f"expected true or false, got {describe(floating_base)}", where="floating_base")
+        raise ModelError(f"expected true or false, got {describe_value(floating_base)}", where="floating_base")
     if not floating_base:
         if base_inertia is not None:
             raise ModelError("a fixed base has no inertia of its own; give floating_base=True or leave it out",
@@ -466,7 +467,7 @@ def _normalize_base(floating_base, base_inertia) -> tuple[bool, sp.ImmutableMatr
         return False, None
     if base_inertia is None:
         return True, sp.ImmutableMatrix(sp.zeros(6))
-    return True, _matrix(base_inertia, (6, 6), "base_inertia")
+    return True, matrix(base_inertia, (6, 6), "base_inertia")
 
 
 def _resolve_mimics(joints: list[Joint]) -> list[Joint]:
@@ -480,18 +481,4 @@ def _resolve_mimics(joints: list[Joint]) -> list[Joint]:
 
 
 def _normalize_frame(f: Frame, k: int) -> Frame:
-    return Frame(str(f.name), f.body, _matrix(f.offset, (4, 4), f"frames[{k}].offset"))
-
-
-def _matrix(value, shape, where) -> sp.ImmutableMatrix:
-    """A matrix of ``shape`` whose entries are read by :func:`to_expr` (strings too: never ``sympify``)."""
-    rows = value.tolist() if isinstance(value, sp.MatrixBase) else value
-    try:
-        rows = [list(r) for r in rows]
-    except TypeError:
-        raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got {value!r}", where=where) from None
-    if len(rows) != shape[0] or any(len(r) != shape[1] for r in rows):
-        got = f"{len(rows)}x{len(rows[0]) if rows else 0}"
-        raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got shape {got}", where=where)
-    return sp.ImmutableMatrix(shape[0], shape[1], [to_expr(x, where=f"{where}[{r}][{c}]")
-                                                   for r, row in enumerate(rows) for c, x in enumerate(row)])
+    return Frame(str(f.name), f.body, matrix(f.offset, (4, 4), f"frames[{k}].offset"))

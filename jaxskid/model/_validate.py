@@ -1,6 +1,6 @@
 """Validation of a robot model, in one place.
 
-:meth:`Robot.create <jaxskid.Robot.create>` runs :func:`validate` on what it is given, before fixed joints
+:meth:`Robot.create <jaxskid.Robot.create>` runs :func:`check_model` on what it is given, before fixed joints
 are merged, so that an error names the caller's own index: ``joints[2].inertia``, ``frames[0].offset[3]``,
 ``defaults.m1``. Readers of description files parse scalars with :func:`to_expr` (the one parser of
 numbers and expressions), check only the syntax and the forms that never reach the model (a quaternion, a
@@ -56,7 +56,7 @@ def symbol(name: str) -> sp.Symbol:
     return sp.Symbol(name, real=True)
 
 
-def describe(value) -> str:
+def describe_value(value) -> str:
     """What a value from a file or an argument is, for a message: ``the number 1.5``, ``a list of 2 items``."""
     if value is None:
         return "nothing (null)"
@@ -84,7 +84,7 @@ def to_expr(value, *, where: str = "") -> sp.Expr:
     real scalar (see the module docstring).
     """
     if isinstance(value, bool):
-        raise ModelError(f"expected a number or an expression, got {describe(value)}", where=where)
+        raise ModelError(f"expected a number or an expression, got {describe_value(value)}", where=where)
     expr = _parse(value, where) if isinstance(value, str) else _sympify(value, where)
     if isinstance(expr, sp.MatrixBase) or not isinstance(expr, sp.Expr):
         raise ModelError(f"expected a scalar number or expression, got {value!r}", where=where)
@@ -274,7 +274,7 @@ def check_parents(parents: Sequence, *, first: int = 0, where: Callable[[int], s
     for i, p in enumerate(parents):
         if not isinstance(p, int) or isinstance(p, bool) or not world <= p <= n - 1 + first:
             raise ModelError(f"expected a body index in {world}..{n - 1 + first} ({world} is the world), "
-                             f"got {describe(p)}", where=where(i))
+                             f"got {describe_value(p)}", where=where(i))
     for i in range(n):  # a chain of parents that comes back to a body is a cycle
         chain, body = [], i + first
         while body != world and body not in chain:
@@ -290,8 +290,8 @@ def check_parents(parents: Sequence, *, first: int = 0, where: Callable[[int], s
 
 
 # ---------------------------------------------------------------------------------------------- the model
-def validate(joints: Sequence, frames: Sequence, gravity: Sequence, end_effectors: Sequence[str],
-             defaults: Mapping[str, float], base: str) -> None:
+def check_model(joints: Sequence, frames: Sequence, gravity: Sequence, end_effectors: Sequence[str],
+                defaults: Mapping[str, float], base: str) -> None:
     """Every invariant of a model, on normalised joints and frames (fixed joints not yet merged)."""
     _check_names(joints, frames, end_effectors, base)
     values = {symbol(k): v for k, v in defaults.items()}
@@ -351,3 +351,18 @@ def check_defaults(defaults: Mapping) -> dict[str, float]:
             raise ModelError(f"expected a finite number, got {v!r}", where=f"defaults.{k}")
         out[str(k)] = x
     return out
+
+
+def matrix(value, shape, where) -> sp.ImmutableMatrix:
+    """The one reader of the model's matrices: a matrix of ``shape`` whose entries are read by :func:`to_expr`
+    (strings too: never ``sympify``)."""
+    rows = value.tolist() if isinstance(value, sp.MatrixBase) else value
+    try:
+        rows = [list(r) for r in rows]
+    except TypeError:
+        raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got {value!r}", where=where) from None
+    if len(rows) != shape[0] or any(len(r) != shape[1] for r in rows):
+        got = f"{len(rows)}x{len(rows[0]) if rows else 0}"
+        raise ModelError(f"expected a {shape[0]}x{shape[1]} matrix, got shape {got}", where=where)
+    return sp.ImmutableMatrix(shape[0], shape[1], [to_expr(x, where=f"{where}[{r}][{c}]")
+                                                   for r, row in enumerate(rows) for c, x in enumerate(row)])

@@ -12,13 +12,14 @@ gives the result its memory (donated: deleted after the call), so a large batch 
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._errors import unknown_names, RequestError, ShapeError
+from .._generated import GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
 from ._ffi import enabled as native_enabled, library, log, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
@@ -29,6 +30,7 @@ from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (co
 from ._ldl import materialize
 from ._parameters import param_array
 from ._pullback import with_pullback
+from ._quantity import Quantity
 
 
 _ONCE = 32
@@ -72,46 +74,44 @@ def _check_donated(name: str, out, inputs) -> None:
                          f"and written: pass an earlier result")
 
 
-def _plain(body: Callable, same: Callable, *args):
-    return body(*args, same)
-
-
 class Dynamics(QuantitySet):
     """Lowered quantities of one robot. Build it with :func:`jaxskid.lower`.
 
     The quantity functions are attributes named after the quantities (``mass_matrix``,
-    ``inverse_dynamics``, ...); see ``quantities`` for what this object has.
+    ``inverse_dynamics``, ...), each with its own signature and docstring (:mod:`jaxskid.runtime._quantity`);
+    see ``quantities`` for what this object has.
 
     Args:
-        namespace: the executed generated module (its ``METADATA`` and functions).
-        source: the module's source text.
-        path: where the module is cached, if it is.
+        module: the generated module (:class:`jaxskid._generated.GeneratedModule`): its metadata, functions
+            and native C.
         catalogue: the names of every quantity jaxskid knows, so that asking for one that was not
             lowered says so (see :class:`~jaxskid.runtime._base.QuantitySet`).
+        native: the module's native libraries (:class:`jaxskid._generated.NativeBuild`), each built when one
+            of its kernels is first used; none: every quantity runs in its JAX form.
+        inertia, checks: as for :class:`~jaxskid.runtime._base.QuantitySet`.
     """
 
     _made = "lowered"
     _remedy = "jaxskid.lower(robot, quantities=[..., {name!r}])"
 
-    def __init__(self, namespace: dict, source: str, path=None, catalogue: Collection[str] = (),
-                 native: Callable | None = None, inertia: Callable | None = None, checks: bool = True):
-        meta = namespace["METADATA"]
+    def __init__(self, module: GeneratedModule, *, catalogue: Collection[str] = (),
+                 native: Sequence[NativeBuild] = (), inertia: Callable | None = None, checks: bool = True):
+        meta = module.metadata
         quantities = meta["quantities"]
         super().__init__(**metadata_fields(meta), catalogue=catalogue, inertia=inertia, checks=checks)
-        self.source = source
-        self.path = path
+        self.module = module
+        self.source = module.source
+        self.path = module.path
         self._meta = quantities
+        generated = module.quantities
         # Each generated function is jitted: traced once per shape and dtype, it is one call in the programs
         # that use it, whose transformations JAX caches (see _traced_once)
-        self._raw: dict[str, Callable] = {name: _traced_once(namespace[name]) for name in quantities}
-        same = namespace["_same"]
+        self._raw: dict[str, Callable] = {name: _traced_once(generated[name].function) for name in quantities}
         self._plain: dict[str, Callable] = {
-            name: _traced_once(functools.partial(_plain, namespace["_" + name], same), name) for name in quantities
+            name: _traced_once(generated[name].single(), name) for name in quantities
         }
-        entries = namespace["_entries"]
         self._entries: dict[str, Callable] = {
-            name: _traced_once(functools.partial(_plain, namespace["_" + name], entries), name)
-            for name, m in quantities.items() if m["shape"]
+            name: _traced_once(generated[name].entries(), name) for name, m in quantities.items() if m["shape"]
         }
         # reverse mode by the closed-form pullbacks, where they were lowered (jaxskid.runtime._pullback)
         self._rules: dict[str, Callable[[Callable], Callable]] = {}
@@ -121,20 +121,28 @@ class Dynamics(QuantitySet):
                 n_args, shape = len(quantities[name]["args"]) + 1, tuple(quantities[name]["shape"])
                 rule = self._rules[name] = functools.partial(
                     with_pullback, program=self._plain[name], pullback=pull, n_args=n_args, shape=shape)
-                self._raw[name] = _traced_once(rule(namespace[name]))
+                self._raw[name] = _traced_once(rule(generated[name].function))
                 self._plain[name] = _traced_once(rule(self._plain[name]), name)
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
         self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
         # the native libraries: each handler's library, built on first use
-        self._native_build = {}
-        for lib in namespace.get("NATIVE_C", ()) if native else ():
-            build = functools.partial(native, lib)
-            self._native_build.update({k[0]: build for k in lib["kernels"]})
-            if lib["backward"]:
-                self._native_build.update(fd_vjp=build, rk4_vjp=build, rk4fb_vjp=build)
+        self._native_build: dict[str, NativeBuild] = {}
+        for lib in native:
+            self._native_build.update({k: lib for k in lib.sources.quantities})
+            if lib.sources.backward:
+                self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
+        # the quantity functions, as attributes (the methods of the same name, forward_dynamics, stay)
+        self._quantities: dict[str, Quantity] = {
+            name: Quantity(name, tuple(m["args"]), tuple(m["shape"]), m["equation"], m["doc"],
+                           tuple(self.argument_shape(a) for a in m["args"]), name == "inverse_dynamics")
+            for name, m in quantities.items()
+        }
+        for name, quantity in self._quantities.items():
+            if not hasattr(type(self), name):
+                setattr(self, name, quantity.function(functools.partial(self._call, name)))
 
     def _pullback(self, name: str) -> Callable | None:
         """``pull(*state, p, w)``: the cotangents of ``name``'s arguments for a cotangent ``w`` of its result,
@@ -286,13 +294,12 @@ class Dynamics(QuantitySet):
         return on_device
 
     # ------------------------------------------------------------------ the functions
-    def __getattr__(self, name: str):
-        if not name.startswith("_") and name in self._signatures:
-            fn = self._jitted.get(name)
-            if fn is None:
-                fn = self._jitted[name] = self._make(name)
-            return fn
-        return super().__getattr__(name)
+    def _call(self, name: str, *args, **kwargs):
+        """A call of the quantity ``name``, its function made (:meth:`_make`) on the first."""
+        fn = self._jitted.get(name)
+        if fn is None:
+            fn = self._jitted[name] = self._make(name)
+        return fn(*args, **kwargs)
 
     def _evaluate(self, name: str) -> Callable:
         """``call(*state, params, pair)``: the quantity on one state or a batch, with ``params`` already
@@ -352,9 +359,8 @@ class Dynamics(QuantitySet):
         # out (None or an earlier result) is donated, and kept though the JAX form does not read it, so that
         # XLA gives its memory to the result
         compiled = outermost(functools.partial(body, pair=True), body, donate_argnames="out", keep_unused=True)
-        takes_wrench = name == "inverse_dynamics"
-
-        call = f"{name}({', '.join(args)}, params=None, *{', wrench=None' if takes_wrench else ''}, out=None)"
+        quantity = self._quantities[name]
+        takes_wrench, call = quantity.takes_wrench, quantity.call
 
         def fn(*state, params=None, wrench=None, out=None, **unexpected):
             if unexpected:
@@ -380,13 +386,6 @@ class Dynamics(QuantitySet):
             return result
 
         fn.__name__ = name
-        fn.__doc__ = (
-            f"{call} -> {tuple(shape)}"
-            f"\n\n{self._meta[name]['equation']}: {self._meta[name]['doc']}"
-            f"\n\n``out``: an earlier result of the same shape and dtype, whose memory the result takes (it is"
-            f" donated: deleted after the call; use the returned array). A large batch's result then fills no"
-            f" fresh memory. Its entries are not read."
-        )
         return fn
 
     def _check_not_a_wrench(self, name: str, params, call: str) -> None:

@@ -1,6 +1,6 @@
 """Native kernels in XLA programs on CPU: the matrix-valued quantities and the backward step of forward
-dynamics, from the library of :mod:`jaxskid.lowering._ffi` (built by the caller's ``build`` function,
-which :func:`jaxskid.lower` supplies).
+dynamics, from the library of :mod:`jaxskid.lowering._ffi` (a :class:`jaxskid._generated.NativeBuild`, which
+:func:`jaxskid.lower` supplies).
 
 :func:`native_quantity` and :func:`native_backward` wrap a handler as a JAX function of one state:
 ``jax.ffi.ffi_call`` on CPU, the pure-JAX function it replaces on every other platform
@@ -20,6 +20,8 @@ from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
+
+from .._generated import NativeBuild
 
 log = logging.getLogger("jaxskid")
 
@@ -56,13 +58,13 @@ def target(path: str | None, handler: str) -> str | None:
     return _TARGETS[key]
 
 
-def library(build: Callable[[], str] | None, label: str) -> str | None:
-    """The path of the library ``build()`` makes, or None (no build, or it failed: logged once per robot,
-    and the pure-JAX kernels serve). The caller has checked :func:`enabled`."""
-    if build is None:
+def library(native: NativeBuild | None, label: str) -> str | None:
+    """The path of the library ``native.build()`` makes, or None (none, or its build failed: logged once per
+    robot, and the pure-JAX kernels serve). The caller has checked :func:`enabled`."""
+    if native is None:
         return None
     try:
-        path = str(build())
+        path = str(native.build())
         ctypes.CDLL(path)  # a library that does not load is a failed build
         return path
     except Exception as exc:  # no compiler, a failed build, an unloadable library: fall back, say why once

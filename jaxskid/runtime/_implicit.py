@@ -71,11 +71,11 @@ def differentiable(dyn, solve: Callable, batched: bool, autodiff: str) -> Callab
 
 @functools.lru_cache(maxsize=1)
 def _runtime_version() -> str:
-    """A hash of the code that builds a solve around the generated module (this package and the shared
-    kernels): a stored export of it holds that code's operations, so a changed runtime makes new ones."""
+    """A hash of the code that builds a solve around the generated module (this package and the fused
+    helpers of :mod:`jaxskid._fused`): a stored export of it holds that code's operations, so a changed runtime makes new ones."""
     root = Path(__file__).parent
     digest = hashlib.sha256()
-    for path in sorted([*root.glob("*.py"), root.parent / "_kernels.py"]):
+    for path in sorted([*root.glob("*.py"), root.parent / "_fused.py"]):
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 

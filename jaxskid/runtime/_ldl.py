@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import jax
 import jax.numpy as jnp
 
-from .._kernels import recip
+from .._fused import recip
 
 
 def assemble(values: Sequence, dtype) -> jax.Array:
@@ -28,7 +28,7 @@ def assemble(values: Sequence, dtype) -> jax.Array:
 
 _reciprocal = recip
 """``1 / d`` by Newton's iteration from a bit-level first guess, the same as in generated modules
-(:mod:`jaxskid._kernels`): XLA on CPU will not fuse a division whose result has several users, so
+(:mod:`jaxskid._fused`): XLA on CPU will not fuse a division whose result has several users, so
 each pivot reciprocal of the factorisation would cut the fused kernel in pieces that recompute their
 shared inputs (slower per state, and slower still with a division per entry)."""
 

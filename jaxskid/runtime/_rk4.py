@@ -25,13 +25,13 @@ import jax
 import jax.numpy as jnp
 from jax.extend.core import ClosedJaxpr, jaxpr_as_fun
 
+from .._tableau import RK4_TABLEAU
 from ._ffi import native_call
 from ._forward import accelerations
 from ._implicit import backward_kernel
 from ._sparse import mass_solver
 
-B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
-C = (0.0, 0.5, 0.5, 1.0)
+B, C = RK4_TABLEAU.b, RK4_TABLEAU.c
 
 
 def _recursion(stage_backward, n: int, qs, qds, accs, ks, p, h, gq, gqd):
@@ -108,7 +108,7 @@ def _available(dyn) -> bool:
     return not dyn.floating_base and "inverse_dynamics_vjp" in dyn.quantities
 
 
-def _kernels(dyn, batched: bool):
+def _stage_functions(dyn, batched: bool):
     """``(qdd, stage_backward)``: forward dynamics with its forward-mode rule (for gradients of the gradient)
     and the backward step of forward dynamics in JAX."""
     qdd = accelerations(dyn, batched, "forward")
@@ -123,7 +123,7 @@ def held_torque_rk4(dyn, batched: bool) -> Callable | None:
     if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
-    qdd, stage_backward = _kernels(dyn, batched)
+    qdd, stage_backward = _stage_functions(dyn, batched)
 
     def recursion(qs, qds, accs, p, h, gq, gqd):
         yq, yqd, lams, pbar, hbar = _recursion(stage_backward, n, qs, qds, accs, None, p, h, gq, gqd)
@@ -152,11 +152,12 @@ def feedback_rk4(dyn, batched: bool) -> Callable | None:
     """``step(control, q, qd, p, h, t, consts) -> (q1, qd1, tau0)``: one RK4 step of ``h`` from time ``t`` under
     the feedback ``tau = control(t, x, *consts)`` at every stage (``x = (q, qd)``; ``tau0``: the first stage's
     torque), differentiable in reverse mode with respect to all but ``control`` (module docstring).
-    ``control`` is a function without closed-over tracers (:func:`hoist` makes one). None where :func:`held_torque_rk4` is None."""
+    ``control`` is a function without closed-over tracers (:func:`hoist` makes one). None where
+    :func:`held_torque_rk4` is None."""
     if not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
-    qdd, stage_backward = _kernels(dyn, batched)
+    qdd, stage_backward = _stage_functions(dyn, batched)
 
     def recursion(qs, qds, accs, ks, p, h, gq, gqd):
         yq, yqd, lams, pbar, hbar = _recursion(stage_backward, n, qs, qds, accs, ks, p, h, gq, gqd)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from .._kernels import recip
+from .._fused import recip
 from ._ldl import assemble
 
 Entries = Mapping[int, jax.Array]

@@ -141,11 +141,6 @@ def _same(x):
     return x
 
 
-def _entries(x):
-    """The ``spread`` that asks a generated function for its nonzero entries, {flat index: value}."""
-    return x
-
-
 def _plain_jvp(body):
     """JVP rule of a generated function: the derivative of its program on unbroadcast values."""
     def rule(primals, tangents):

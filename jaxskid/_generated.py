@@ -1,0 +1,152 @@
+"""The seam between lowering and the runtime: what a generated JAX module holds, as typed, frozen data.
+
+:mod:`jaxskid.codegen._jax` prints a module, :mod:`jaxskid.lowering._cache` executes it and
+:mod:`jaxskid.lowering._module` reads it into a :class:`GeneratedModule`; :class:`jaxskid.Dynamics` is built
+from that object and reads no module namespace itself. The native C of the module's matrix-valued quantities
+travels beside it as :class:`NativeSource` objects, and reaches the runtime as :class:`NativeBuild` objects
+(:class:`jaxskid.lowering._ffi_build.NativeLibrary`), which build their library when first asked.
+
+Nothing here imports JAX or SymPy: the codegen, lowering and runtime stages all use these types.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple, Protocol
+
+
+class NativeKernel(NamedTuple):
+    """One quantity of a native library: its name, the flat sizes and core ranks of its inputs (the
+    parameters last), its output's flat size and rank."""
+
+    name: str
+    sizes: tuple[int, ...]
+    cores: tuple[int, ...]
+    n_out: int
+    out_rank: int
+
+
+class Statement(NamedTuple):
+    """One line of a kernel's body over vectors of states: ``kind`` ``"unused"`` (``(void)name;``, an argument
+    it does not read), ``"input"`` (``const V name = value;``, an entry of an argument), ``"define"`` (``const
+    V name = value;``) or ``"output"`` (``out[name] = value;``); ``value`` is C in which ``@V@`` stands for the
+    vector type, and ``reads`` names the variables it reads."""
+
+    kind: str
+    name: str
+    value: str
+    reads: tuple[str, ...]
+
+
+class VectorKernel(NamedTuple):
+    """A quantity's program over vectors of states (:func:`jaxskid.codegen._c.vector_kernel`): its arguments
+    (``p`` last; the output ``out`` follows), its statements in order, and the flat indices of the outputs
+    that are zero for every state."""
+
+    args: tuple[str, ...]
+    statements: tuple[Statement, ...]
+    zeros: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class NativeSource:
+    """The generated C of one native library (:func:`jaxskid.codegen._c.native_sources`): ``<stem>.h`` and
+    ``<stem>.c``, the quantities it has a kernel for, whether it has the backward step of forward dynamics,
+    and the programs of its functions over vectors of states by quantity (None for one that has no vector form:
+    it calls a function the vector form lacks)."""
+
+    stem: str
+    header: str
+    source: str
+    backward: bool
+    kernels: tuple[NativeKernel, ...]
+    vectors: Mapping[str, VectorKernel | None]
+
+    def as_dict(self) -> dict:
+        """Plain data, as a generated module writes it (``NATIVE_C``)."""
+        return {"stem": self.stem, "header": self.header, "source": self.source, "backward": self.backward,
+                "kernels": tuple(tuple(k) for k in self.kernels),
+                # one JSON string: a literal of many small tuples takes Python long to compile when the module loads
+                "vectors": json.dumps({k: None if v is None else (v.args, v.statements, v.zeros)
+                                       for k, v in self.vectors.items()}, separators=(",", ":"))}
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> NativeSource:
+        return cls(d["stem"], d["header"], d["source"], bool(d["backward"]),
+                   tuple(NativeKernel(k[0], tuple(k[1]), tuple(k[2]), k[3], k[4]) for k in d["kernels"]),
+                   {k: None if v is None else VectorKernel(tuple(v[0]), tuple(Statement(a, b, c, tuple(r))
+                                                                                for a, b, c, r in v[1]), tuple(v[2]))
+                    for k, v in json.loads(d["vectors"]).items()})
+
+    @property
+    def quantities(self) -> tuple[str, ...]:
+        """The quantities with a kernel in this library."""
+        return tuple(k.name for k in self.kernels)
+
+
+class NativeBuild(Protocol):
+    """A native library the runtime may use (:class:`jaxskid.lowering._ffi_build.NativeLibrary`)."""
+
+    sources: NativeSource
+
+    def build(self) -> Path:
+        """The path of the built library (built once per machine); raises when it cannot be built."""
+
+
+def _identity(x):
+    return x
+
+
+def _single(program: Callable, *args):
+    return program(*args, _identity)
+
+
+def _entries(program: Callable, *args):
+    return program(*args, _identity, entries=True)
+
+
+@dataclass(frozen=True)
+class GeneratedQuantity:
+    """One quantity of a generated module.
+
+    ``function(*state, p)`` is the module's public function (a ``jax.custom_jvp``): the program with every
+    input entry broadcast to the output's shape, the form to map with ``jax.vmap``. ``program(*state, p,
+    spread, entries=False)`` is the program itself: ``spread`` broadcasts an input entry (or is the
+    identity); with ``entries=True`` it returns the structurally nonzero entries unassembled,
+    ``{flat index: value}`` (quantities with a shape only).
+    """
+
+    name: str
+    args: tuple[str, ...]
+    """The state arguments, in order (``p`` follows)."""
+    shape: tuple[int, ...]
+    """One state's result."""
+    equation: str
+    doc: str
+    function: Callable
+    program: Callable
+
+    def single(self) -> Callable:
+        """``f(*state, p)``: the program on unbroadcast values, for one state."""
+        return functools.partial(_single, self.program)
+
+    def entries(self) -> Callable:
+        """``f(*state, p) -> {flat index: value}``: the structurally nonzero entries, row-major."""
+        return functools.partial(_entries, self.program)
+
+
+@dataclass(frozen=True)
+class GeneratedModule:
+    """A generated JAX module, executed: its metadata (:meth:`jaxskid.codegen.Layout.metadata`), one
+    :class:`GeneratedQuantity` per quantity (in the catalogue's order), the native C beside it, its source
+    text and the cache file it came from (None when uncached)."""
+
+    metadata: Mapping
+    quantities: Mapping[str, GeneratedQuantity]
+    native: tuple[NativeSource, ...]
+    source: str
+    path: Path | None = None
