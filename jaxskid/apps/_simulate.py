@@ -229,7 +229,9 @@ def rollout(
         stabilization, regularization: a constrained robot's (module docstring; :func:`constrained_forward_dynamics`).
         health: check that RK4's step integrates the closed loop at the final states stably, and warn
             (:class:`RolloutWarning`, naming the rollouts and a step that would) where it does not
-            (:mod:`jaxskid.apps._health`); ``None``: with :class:`GroundContact` only. Called from Python only.
+            (:mod:`jaxskid.apps._health`); with :class:`GroundContact`, also warn where a floating base ends
+            below the ground with no contact frame on it. ``None``: with :class:`GroundContact` only. Called from
+            Python only.
 
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
@@ -270,13 +272,16 @@ def _batch(dyn, x0, p, u, dt, steps: int) -> tuple:
 
 def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> Trajectory:
     """``traj``, after :func:`~jaxskid.apps._health.warn_if_unstable` on its final states where ``health`` asks
-    for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set."""
+    for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set, and
+    :func:`~jaxskid.apps._health.warn_if_below_ground` in a scene with ground contact."""
     from ._contact import GroundContact
-    from ._health import warn_if_unstable
+    from ._health import warn_if_below_ground, warn_if_unstable
 
     dyn, controller, integrator = static[:3]
     if health is None:
         health = isinstance(controller, GroundContact)
+    if health and isinstance(controller, GroundContact) and top_level((traj.x,)):
+        warn_if_below_ground(controller, traj.x[..., -1, :], stacklevel=4)
     if not health or type(integrator) is not RK4 or not top_level((traj.x, dt)) or np.ndim(dt) or \
             (params is not None and np.ndim(dyn.param_vector(params)) > 1):
         return traj
