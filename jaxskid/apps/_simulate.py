@@ -32,7 +32,7 @@ from ..runtime._batching import batch_shape, float_arrays
 from ..runtime._dynamics import Dynamics
 from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
-from ..runtime._checks import check_finite
+from ..runtime._checks import check_inputs
 from ..runtime._jit import forward_mode, jit, top_level, traced
 from ..runtime._free_flyer import normalize
 from ..runtime._rk4 import feedback_rk4, held_torque_rk4
@@ -227,11 +227,9 @@ def rollout(
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
             ``jax.devices()``.
         stabilization, regularization: a constrained robot's (module docstring; :func:`constrained_forward_dynamics`).
-        health: check that RK4's step integrates the closed loop at the final states stably, and warn
-            (:class:`RolloutWarning`, naming the rollouts and a step that would) where it does not
-            (:mod:`jaxskid.apps._health`); with :class:`GroundContact`, also warn where a floating base ends
-            below the ground with no contact frame on it. ``None``: with :class:`GroundContact` only. Called from
-            Python only.
+        health: from Python, warn (:class:`RolloutWarning`) where RK4's step does not integrate the closed loop
+            at the final states stably, naming the rollouts and a step that would (:mod:`jaxskid.apps._health`),
+            and where a floating base ends below the ground with no contact frame on it; ``None``: with contact.
 
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
@@ -292,9 +290,8 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
 
 def _inputs(dyn, x0, u):
     """``(x0, u, dtype)``: the initial states and the torque or input array (or None) in one floating dtype,
-    checked for NaN and inf at the top level (:func:`~jaxskid.runtime._checks.check_finite`)."""
-    if dyn.checks and top_level((x0, u)):
-        check_finite("rollout", [("x0", x0), ("controls", u)])
+    checked for NaN and inf (:func:`~jaxskid.runtime._checks.check_inputs`)."""
+    check_inputs(dyn.checks, "rollout", [("x0", x0), ("controls", u)])
     arrays, dtype = float_arrays([x0] if u is None else [x0, u])
     return arrays[0], (arrays[1] if u is not None else None), dtype
 
