@@ -3,8 +3,8 @@
 * :func:`check_finite`: NaN or inf in a state argument raises :class:`~jaxskid.InputError` naming the
   argument, the first bad index and its value (a NaN ``q`` would otherwise give a partly NaN ``M`` and a
   rollout NaN to its end).
-* :class:`InertiaCheck`: a parameter vector that gives a body a negative mass, or a rotational inertia about
-  its centre of mass that is not positive semi-definite (``I_C = I_O + h~ h~ / m``, with ``h = m c``),
+* :class:`InertiaCheck`: a parameter vector that gives a body a negative mass, no mass with a first moment
+  ``m c``, or a rotational inertia about its centre of mass that is not positive semi-definite (``I_C = I_O + h~ h~ / m``, with ``h = m c``),
   raises :class:`~jaxskid.InputError` naming the parameters of the body: the mass matrix is then not
   positive definite and forward dynamics meaningless. A body whose standard parameters equal the
   defaults' is not checked again (they were checked at load, :mod:`jaxskid.model._inertia_check`). The
@@ -176,6 +176,13 @@ class InertiaCheck:
             (np.abs(pi - self.reference) > 1e-12 * (1 + np.abs(self.reference))).reshape(-1, *pi.shape[-2:]).any(axis=(0, 2))
         if not changed.any():
             return
+        h_norm = np.abs(pi[..., 1:4]).max(axis=-1)
+        hollow = (m == 0) & (h_norm > 0) & changed  # no mass, yet a first moment m c: no body has it
+        if hollow.any():
+            k = int(np.argmax(hollow.reshape(-1, m.shape[-1]).any(axis=0)))
+            raise InputError(f"{where}: {self._named(k, 1, p)} give body {self.bodies[k]!r} the mass 0 with a first "
+                             f"moment of mass (m c) of size {float(np.max(h_norm[..., k])):g}: expected a mass > 0, or "
+                             f"mcx = mcy = mcz = 0 for a massless body")
         sub = pi[..., changed, :]
         mass, h, about_origin = sub[..., 0], sub[..., 1:4], _rotational(sub[..., 4:])
         hx = _skew(h)
