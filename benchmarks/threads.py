@@ -112,7 +112,8 @@ def main() -> None:
                 continue
             pinned, free = (float(np.median([x[figure] for x in runs[p]])) for p in (True, False))
             label = "wall time" if figure == "seconds" else f"{figure} per state"
-            out(f"| {task} | {label} | {doc_tables.duration(pinned)} | {doc_tables.duration(free)} | {free / pinned:.2f} |")
+            shown = " | ".join(doc_tables.duration(x) for x in (pinned, free))
+            out(f"| {task} | {label} | {shown} | {free / pinned:.2f} |")
     doc_tables.write(args.markdown, out, f"Medians of {args.rounds} fresh processes each, pinned and unpinned "
                      f"alternated; load average at the end {os.getloadavg()[0]:.2f}.")
 

@@ -60,8 +60,8 @@ class GroundContact(Controller):
     Args:
         dyn: lowered with ``ee_pose``, ``ee_hybrid_twist`` and ``external_torques`` (:data:`NEEDED`).
         frames: the contact frames, end-effectors of ``dyn``: a sequence of names (points), a mapping name ->
-            radius [m] (spheres of that radius around the frames, :attr:`ContactPoints.radius
-            <jaxskid.ContactPoints>`), or ``None`` for every end-effector (points). Only these frames touch
+            radius [m] (spheres of that radius around the frames: the ``radius`` of a
+            :class:`~jaxskid.ContactPoints`), or ``None`` for every end-effector (points). Only these frames touch
             the ground.
         stiffness: ``k`` [N/m] of the normal spring.
         damping: ``c`` [N s/m] of the normal damper.

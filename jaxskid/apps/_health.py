@@ -126,12 +126,11 @@ def warn_if_below_ground(contact, x_final, stacklevel: int = 3) -> np.ndarray:
     (:meth:`~jaxskid.GroundContact.on_base`): nothing holds the base up, so it falls through the floor. Returns
     whether each rollout's base ended below the ground ``(...)`` (all False for a fixed base or a base with
     contact frames)."""
-    dyn = contact.dyn
     x_final = np.asarray(x_final)
-    if not dyn.floating_base or contact.on_base():
-        return np.zeros(x_final.shape[:-1], bool)
     height = float(contact.height)
     below = x_final[..., 2] < height
+    if not contact.dyn.floating_base or not below.any() or contact.on_base():
+        return np.zeros(x_final.shape[:-1], bool)
     bad = np.argwhere(np.atleast_1d(below))
     if bad.size:
         names = ", ".join(str(tuple(int(i) for i in b)) if len(b) > 1 else str(int(b[0])) for b in bad[:5])
