@@ -1,13 +1,16 @@
 """Pinned to one core against free to use every core the process may: does a loaded machine oversubscribe?
 
-    python benchmarks/threads.py [--tasks excitation,scaling] [--rounds 3] [--markdown PATH]
+    python benchmarks/threads.py [--tasks excitation,scaling] [--rounds 3] [--dispatch sync,async] [--busy 0]
+                                 [--markdown PATH]
 
 jaxskid's native kernels run their batches on XLA's own intra-op thread pool (``pool_threads`` in
 ``jaxskid/lowering/_ffi_batch.py``), which XLA sizes to the cores the process may run on (its affinity mask), so
-the kernels and XLA's own work share one pool. Each task runs in a fresh process, once under ``taskset -c 0``
-and once without, the two alternated round by round (the order swapped every round) so that the machine's
-other load hits both alike, after one unmeasured run that fills jaxskid's cache (the generated module and
-native library); the table gives the medians and unpinned / pinned (the goal: at most 1.3):
+the kernels and XLA's own work share one pool. Each task runs in fresh processes, under ``taskset -c 0`` and
+without, each with jaxskid's synchronous CPU dispatch and with JAX's asynchronous one
+(``JAXSKID_ASYNC_DISPATCH=1``), the variants alternated round by round (their order rotated every round) so
+that the machine's other load hits all alike (``--busy N`` adds N busy-looping processes as load), after one
+unmeasured run that fills jaxskid's cache (the generated module and native library); the table gives the
+medians and unpinned / pinned (the goal: at most 1.3):
 
 - ``excitation``: ``design_excitation(dyn, 5, 10.0, 10, robot=robot, base=base, starts=8, steps=150)`` on
   example-robot-data's UR10 with drives (``regressor`` lowered beforehand, outside the time): the call's wall
@@ -57,15 +60,17 @@ def excitation_worker() -> None:
     print(json.dumps({"seconds": time.perf_counter() - start, "cpus": len(os.sched_getaffinity(0))}))
 
 
-def run(task: str, pinned: bool) -> dict:
-    """One fresh process of ``task``, pinned to core 0 or not: its measured figures."""
+def run(task: str, pinned: bool, asynchronous: bool = False) -> dict:
+    """One fresh process of ``task``, pinned to core 0 or not, with JAX's asynchronous CPU dispatch or without
+    (jaxskid's default): its measured figures."""
     prefix = ["taskset", "-c", "0"] if pinned else []
     if task == "excitation":
         command = [*prefix, sys.executable, str(Path(__file__).resolve()), "--worker"]
     else:
         command = [*prefix, *SCALING, "--plot", str(Path(tempfile.mkdtemp()) / "scaling.png")]
+    env = {**os.environ, "JAXSKID_ASYNC_DISPATCH": "1" if asynchronous else "0"}
     start = time.perf_counter()
-    done = subprocess.run(command, capture_output=True, text=True, cwd=HERE.parent, check=True)
+    done = subprocess.run(command, capture_output=True, text=True, cwd=HERE.parent, check=True, env=env)
     wall = time.perf_counter() - start
     if task == "excitation":
         return json.loads(done.stdout.strip().splitlines()[-1])
@@ -87,6 +92,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--tasks", default="excitation,scaling")
     parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--dispatch", default="sync,async",
+                        help="sync: jaxskid's default; async: JAX's own (JAXSKID_ASYNC_DISPATCH=1)")
+    parser.add_argument("--busy", type=int, default=0, help="busy-looping processes to run beside, as other load")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     doc_tables.add_option(parser)
     args = parser.parse_args()
@@ -97,25 +105,37 @@ def main() -> None:
         parser.error("taskset (util-linux) is needed to pin a process to one core")
     print(f"{os.cpu_count()} cores, this process may use {len(os.sched_getaffinity(0))}; load average "
           f"{os.getloadavg()[0]:.2f}")
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.busy)]
+    try:
+        out = measure(args.tasks.split(","), args.rounds, args.dispatch.split(","))
+    finally:
+        for process in busy:
+            process.kill()
+    doc_tables.write(args.markdown, out, f"Medians of {args.rounds} fresh processes each, the variants alternated "
+                     f"(their order rotated every round); {args.busy} busy-looping processes beside them; load "
+                     f"average at the end {os.getloadavg()[0]:.2f}.")
+
+
+def measure(tasks: list[str], rounds: int, dispatches: list[str]) -> list[str]:
+    """The table: per task and dispatch, the median figures pinned and unpinned."""
     out = doc_tables.Lines()
-    out("| task | figure | pinned (taskset -c 0) | unpinned | unpinned / pinned |")
-    out("|---|---|---|---|---|")
-    for task in args.tasks.split(","):
-        run(task, False)  # unmeasured: writes the generated module and native library both then find
-        runs: dict[bool, list[dict]] = {True: [], False: []}
-        for r in range(args.rounds):
-            for pinned in ((True, False) if r % 2 == 0 else (False, True)):
-                runs[pinned].append(run(task, pinned))
-                print(f"{task} round {r} {'pinned' if pinned else 'unpinned'}: {runs[pinned][-1]}", flush=True)
-        for figure in runs[True][0]:
-            if figure == "cpus":
-                continue
-            pinned, free = (float(np.median([x[figure] for x in runs[p]])) for p in (True, False))
-            label = "wall time" if figure == "seconds" else f"{figure} per state"
-            shown = " | ".join(doc_tables.duration(x) for x in (pinned, free))
-            out(f"| {task} | {label} | {shown} | {free / pinned:.2f} |")
-    doc_tables.write(args.markdown, out, f"Medians of {args.rounds} fresh processes each, pinned and unpinned "
-                     f"alternated; load average at the end {os.getloadavg()[0]:.2f}.")
+    out("| task | dispatch | figure | pinned (taskset -c 0) | unpinned | unpinned / pinned |")
+    out("|---|---|---|---|---|---|")
+    variants = [(d, pinned) for d in dispatches for pinned in (True, False)]
+    for task in tasks:
+        run(task, False)  # unmeasured: writes the generated module and native library the others then find
+        runs: dict[tuple, list[dict]] = {v: [] for v in variants}
+        for r in range(rounds):
+            for v in variants[r % len(variants):] + variants[:r % len(variants)]:
+                runs[v].append(run(task, v[1], v[0] == "async"))
+                print(f"{task} round {r} {v[0]} {'pinned' if v[1] else 'unpinned'}: {runs[v][-1]}", flush=True)
+        for dispatch in dispatches:
+            for figure in (f for f in runs[(dispatch, True)][0] if f != "cpus"):
+                pinned, free = (float(np.median([x[figure] for x in runs[(dispatch, p)]])) for p in (True, False))
+                label = "wall time" if figure == "seconds" else f"{figure} per state"
+                shown = " | ".join(doc_tables.duration(x) for x in (pinned, free))
+                out(f"| {task} | {dispatch} | {label} | {shown} | {free / pinned:.2f} |")
+    return out
 
 
 if __name__ == "__main__":
