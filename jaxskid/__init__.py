@@ -60,6 +60,7 @@ if TYPE_CHECKING:  # the same names for type checkers and editors (tests/test_la
     from .description._dh import DH, dh_robot
     from .description._urdf_writer import write_urdf
     from .description._report import describe, draw_tree
+    from .description._collision import ContactPoints, collision_points
 
 _EXPORTS = {  # module -> the public names it defines (a submodule's own name: the submodule)
     ".model._lie": "pose pose_xyzrpy rot_axis_angle rot_quaternion rot_rpy screw spatial_inertia",
@@ -100,6 +101,7 @@ _EXPORTS = {  # module -> the public names it defines (a submodule's own name: t
     ".description._dh": "DH dh_robot",
     ".description._urdf_writer": "write_urdf",
     ".description._report": "describe draw_tree",
+    ".description._collision": "ContactPoints collision_points",
 }
 _LAZY = {name: module for module, names in _EXPORTS.items() for name in names.split()}
 
@@ -170,6 +172,8 @@ __all__ = [
     "write_urdf",
     "describe",
     "draw_tree",
+    "ContactPoints",
+    "collision_points",
     "pose_xyzrpy",
     "rot_axis_angle",
     "rot_quaternion",

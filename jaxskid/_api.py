@@ -24,6 +24,7 @@ from .description._yaml_skidy import check_dialect
 from .model._inertia_check import check_inertias
 from .model._robot import Robot
 from .model._standard import body_standard_map
+from .runtime._checks import checks_mode
 from .runtime._dynamics import Dynamics
 from .runtime._ffi import enabled as native_enabled
 from .runtime._native import NativeDynamics
@@ -83,7 +84,7 @@ def lower(
     cache_dir: str | os.PathLike | None = None,
     options: Options | None = None,
     progress: bool = False,
-    checks: bool = True,
+    checks: bool | str = True,
 ) -> Dynamics:
     """Derive, lower and wrap the requested quantities of ``model`` (only those).
 
@@ -112,8 +113,13 @@ def lower(
         checks: whether calls from Python check their inputs before running: NaN or inf in a state or a
             parameter (named, with the first bad index), parameter values that are not numbers, and
             masses and inertias no rigid body has (:mod:`jaxskid.runtime._checks`); a few microseconds a
-            call, nothing inside a caller's ``jit``, ``grad`` or ``vmap``. ``dyn.checks`` can be changed later.
+            call, nothing inside a caller's ``jit``, ``grad`` or ``vmap``. ``"debug"``: inside them too, the
+            states of every quantity, ``forward_dynamics`` and ``rollout`` call are checked by a test staged into
+            the traced program, which fails with a ``jax.errors.JaxRuntimeError`` carrying the ``InputError``'s
+            message (argument and first bad index); a debugging aid that costs a host call per evaluation.
+            ``dyn.checks`` can be changed later (to ``"debug"`` only on a ``Dynamics`` lowered with it).
     """
+    checks = checks_mode(checks)
     if isinstance(model, Equations):
         if symbolic is not None:
             raise RequestError("lower: symbolic= needs a Robot; for Equations, derive from robot.substitute(...)")

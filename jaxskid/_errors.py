@@ -40,7 +40,7 @@ class PhysicalConsistencyWarning(UserWarning):
 class ModelError(JaxskidError, ValueError):
     """A robot description is malformed or violates an invariant.
 
-    ``where`` is the key path inside the description (``"mass_inertia[2].inertia"``); ``source`` is the
+    ``message`` says what was expected and what was found; ``where`` is the key path inside the description (``"mass_inertia[2].inertia"``); ``source`` is the
     file it came from, if any. ``str(err)`` reads ``"robot.yaml: mass_inertia[2].inertia: expected ..."``.
     """
 

@@ -1,6 +1,7 @@
 """The switch to XLA's classic CPU emitters, set in ``XLA_FLAGS`` when jaxskid is imported, before JAX's
-backends start. Imports nothing of JAX, so that ``import jaxskid`` stays light
-(:func:`prefer_classic_emitters`; the per-program option is :func:`jaxskid.compiler_options`)."""
+backends start. Imports nothing of JAX at import, so that ``import jaxskid`` stays light
+(:func:`prefer_classic_emitters`; the per-program option is :func:`jaxskid.compiler_options`). Synchronous
+dispatch on CPU (:func:`prefer_synchronous_cpu_dispatch`) is set when the runtime, which imports JAX, is."""
 
 from __future__ import annotations
 
@@ -48,4 +49,34 @@ def prefer_classic_emitters() -> bool:
         except (ImportError, AttributeError):
             return False
     os.environ["XLA_FLAGS"] = f"{flags} {CLASSIC_EMITTERS_FLAG}".strip()
+    return True
+
+
+ASYNC_DISPATCH_VARIABLE = "JAXSKID_ASYNC_DISPATCH"
+"""Set to 1 to keep JAX's asynchronous dispatch on CPU (:func:`prefer_synchronous_cpu_dispatch`)."""
+
+
+def prefer_synchronous_cpu_dispatch() -> bool:
+    """Make JAX's CPU client run each computation on the calling thread (``jax_cpu_enable_async_dispatch =
+    False``), while JAX's backends have not started (the option is read once, when the CPU client is made).
+
+    With asynchronous dispatch every call hands its computation to another thread and the caller then waits
+    for it; on a machine whose cores other processes keep busy, each hand-over waits for the scheduler, and a
+    loop of small calls that reads every result (:func:`jaxskid.design_excitation`'s optimiser) runs several
+    times slower free to use every core than pinned to one (``benchmarks/threads.py`` measures both). Calls
+    from Python return when their result is ready, as jaxskid's calls that read it wait for anyway. ``JAXSKID_ASYNC_DISPATCH=1`` in the environment keeps
+    JAX's default. Called when jaxskid's runtime is imported (it imports JAX); returns whether it set the
+    option.
+    """
+    if os.environ.get(ASYNC_DISPATCH_VARIABLE, "0") not in ("", "0"):
+        return False
+    try:
+        import jax
+        from jax._src import xla_bridge
+
+        if xla_bridge.backends_are_initialized():
+            return False  # too late for this process: the CPU client exists
+        jax.config.update("jax_cpu_enable_async_dispatch", False)
+    except (ImportError, AttributeError, KeyError, ValueError):  # a JAX without the option
+        return False
     return True

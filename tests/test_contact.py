@@ -28,9 +28,10 @@ def to_pin(v):
     return np.concatenate([v[3:6], v[:3], v[6:]])
 
 
-def reference_forces(model, q, v):
+def reference_forces(model, q, v, radius=0.0):
     """The contact law of jaxskid.apps._contact on Pinocchio's kinematics: (forces (4, 3), generalized force in
-    Pinocchio's velocity order)."""
+    Pinocchio's velocity order). With a ``radius``, each foot is a sphere around its frame, touching the ground at
+    the material point ``radius`` below its centre, whose velocity and Jacobian are those of that point."""
     data = model.createData()
     pin.forwardKinematics(model, data, q, to_pin(v))
     pin.updateFramePlacements(model, data)
@@ -38,13 +39,15 @@ def reference_forces(model, q, v):
     forces, tau = [], np.zeros(model.nv)
     for name in FEET:
         fid = model.getFrameId(name)
-        p = data.oMf[fid].translation
-        vel = pin.getFrameVelocity(model, data, fid, pin.LOCAL_WORLD_ALIGNED).linear
+        lever = np.array([0.0, 0.0, -radius])  # frame -> contact point, world axes
+        p = data.oMf[fid].translation + lever
+        frame_jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        jac = frame_jac[:3] - pin.skew(lever) @ frame_jac[3:]  # v_point = v + omega x lever
+        vel = jac @ to_pin(v)
         depth = HEIGHT - p[2]
         fn = max(K * depth - C * vel[2], 0.0) if depth > 0 else 0.0
         ft = -MU * fn * vel[:2] / np.sqrt(vel[:2] @ vel[:2] + SLIP**2)
         f = np.array([*ft, fn])
-        jac = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
         forces.append(f)
         tau += jac.T @ f
     return np.array(forces), tau
@@ -63,6 +66,36 @@ def test_contact_law_matches_pinocchio_kinematics(solo):
         assert np.abs(np.asarray(f) - f_ref).max() <= 1e-9 * max(1.0, np.abs(f_ref).max())
         assert np.abs(to_pin(np.asarray(tau)) - tau_ref).max() <= 1e-9 * max(1.0, np.abs(tau_ref).max())
         assert (f_ref[:, 2] > 0).any()  # some feet are in contact at these heights
+
+
+def test_sphere_contact_matches_pinocchio_kinematics(solo):
+    """Feet as spheres (frames given with a radius): the force acts at the lowest point of each sphere, with that
+    point's velocity, as Pinocchio's Jacobian of the point gives them."""
+    _, dyn, model = solo
+    radius = 0.015
+    contact = jaxskid.GroundContact(dyn, dict.fromkeys(FEET, radius), stiffness=K, damping=C, friction=MU,
+                                    slip=SLIP, height=HEIGHT)
+    assert contact.frames == FEET and np.all(contact.radius == radius)
+    rng = np.random.default_rng(2)
+    for _ in range(4):
+        q = np.concatenate([[0.1, -0.05, 0.235 + rng.uniform(-0.03, 0.01)], pin.Quaternion(pin.exp3(
+            rng.normal(0, 0.3, 3))).coeffs(), STAND + rng.normal(0, 0.2, 12)])
+        v = rng.normal(0, 0.5, model.nv)
+        f_ref, tau_ref = reference_forces(model, q, v, radius)
+        points, f, tau = contact.forces(jnp.asarray(q), jnp.asarray(v))
+        assert np.abs(np.asarray(f) - f_ref).max() <= 1e-9 * max(1.0, np.abs(f_ref).max())
+        assert np.abs(to_pin(np.asarray(tau)) - tau_ref).max() <= 1e-9 * max(1.0, np.abs(tau_ref).max())
+        assert (f_ref[:, 2] > 0).any() and (f_ref[:, :2] != 0).any()
+
+
+def test_contact_frames_are_checked_and_named(solo):
+    _, dyn, _ = solo
+    contact = jaxskid.GroundContact(dyn, FEET[:2])
+    assert "FL_FOOT, FR_FOOT" in repr(contact) and contact.on_base() == ()
+    with pytest.raises(jaxskid.RequestError, match=r"frames: .*'FL_FOT' \(did you mean 'FL_FOOT'"):
+        jaxskid.GroundContact(dyn, ["FL_FOT"])
+    with pytest.raises(jaxskid.RequestError, match=r"frames\['FL_FOOT'\]: expected a radius >= 0 \[m\], got -0.1"):
+        jaxskid.GroundContact(dyn, {"FL_FOOT": -0.1})
 
 
 def test_contact_gradient_matches_finite_differences(solo):

@@ -2,7 +2,7 @@
 values and NaN at call time, misspelt names, and one broadcasting rule for every argument.
 
 Each error is checked for its exact type and for naming what the user wrote (the file, the key, the argument
-and its first bad index, the parameter).
+and its first bad index, the parameter). Fuzzed values: tests/test_fuzz_inputs.py.
 """
 
 import re
@@ -13,8 +13,6 @@ import jax.numpy as jnp
 import numpy as np
 import pinocchio as pin
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 import jaxskid
 from helpers import ERD, ROBOTS_DIR, URDFS
@@ -177,71 +175,6 @@ def test_repr_of_a_robot_is_one_short_line():
     text = repr(jaxskid.load(UR5))
     assert "\n" not in text and len(text) < 200
     assert "'ur5'" in text and "n_dof=6" in text and "6 revolute" in text and "parameters=60" in text
-
-
-# ---------------------------------------------------------------- fuzzed: every bad value gets a clear error
-
-FUZZ = settings(max_examples=60, deadline=None, derandomize=True, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-BAD_VALUES = st.one_of(
-    st.floats(max_value=0.0), st.just(0.0), st.just(float("nan")), st.just(float("inf")), st.just(-float("inf")),
-    st.text(max_size=5), st.none(), st.floats(min_value=-1e3, max_value=1e3),
-)
-
-
-@FUZZ
-@given(data=st.data())
-def test_fuzzed_parameter_values_run_or_get_a_named_error(ur5, data):
-    """A parameter dict with a negative, zero, NaN, infinite, string or None value: the call either runs and
-    gives a finite symmetric M, or raises InputError naming the parameter (or its body)."""
-    name = data.draw(st.sampled_from(ur5.parameters))
-    value = data.draw(BAD_VALUES)
-    q = np.linspace(-1.0, 1.0, ur5.n_dof)
-    try:
-        m = np.asarray(ur5.mass_matrix(q, params={name: value}))
-    except jaxskid.InputError as err:
-        assert name in str(err) or f"'{name.rsplit('_', 1)[0]}'" in str(err), str(err)
-        return
-    assert np.isfinite(m).all() and np.allclose(m, m.T)
-
-
-TWO_LINKS = """<robot name="two">
-  <link name="base"/>
-  <link name="a"><inertial><origin xyz="0 0 0.1"/><mass value="{ma}"/>
-    <inertia ixx="{a0}" ixy="0" ixz="0" iyy="{a1}" iyz="0" izz="{a2}"/></inertial></link>
-  <link name="b"><inertial><origin xyz="{cb} 0 0"/><mass value="{mb}"/>
-    <inertia ixx="{b0}" ixy="0" ixz="0" iyy="{b1}" iyz="0" izz="{b2}"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
-  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0.2"/><axis xyz="0 1 0"/>
-    <limit lower="-3" upper="3" effort="10" velocity="3"/></joint>
-</robot>"""
-MOMENT = st.sampled_from([0.0, 0.0, 1e-3, 0.01, 0.1, -0.01])
-
-
-@FUZZ
-@given(ma=st.sampled_from([0.0, 1.0, -1.0]), mb=st.sampled_from([0.0, 0.5, -0.5]),
-       cb=st.sampled_from([0.0, 0.3]), a=st.tuples(MOMENT, MOMENT, MOMENT), b=st.tuples(MOMENT, MOMENT, MOMENT))
-def test_fuzzed_urdf_inertias_load_usable_or_get_a_named_error(tmp_path_factory, ma, mb, cb, a, b):
-    """Zero, negative or inconsistent masses and moments: the URDF is refused with a ModelError naming the file
-    and a link, or loads (a warning allowed) into a robot whose mass matrix, by Pinocchio, is positive definite
-    at random configurations."""
-    path = tmp_path_factory.mktemp("fuzz") / "two.urdf"
-    path.write_text(TWO_LINKS.format(ma=ma, mb=mb, cb=cb, a0=a[0], a1=a[1], a2=a[2], b0=b[0], b1=b[1], b2=b[2]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", jaxskid.PhysicalConsistencyWarning)
-        try:
-            jaxskid.load(path)
-        except jaxskid.ModelError as err:
-            assert str(path) in str(err) and ("'a'" in str(err) or "'b'" in str(err) or "name=a" in str(err)
-                                              or "name=b" in str(err)), str(err)
-            return
-    model = pin.buildModelFromUrdf(str(path))
-    data = model.createData()
-    for q in np.random.default_rng(0).uniform(-3, 3, (5, 2)):
-        m = pin.crba(model, data, q)
-        m = np.triu(m) + np.triu(m, 1).T
-        assert np.linalg.eigvalsh(m)[0] > 0, (ma, mb, a, b, q)
 
 
 # ---------------------------------------------------------------- rollout health

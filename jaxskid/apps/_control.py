@@ -172,6 +172,17 @@ class SlotineLi(Controller):
 
     The controller's state ``z`` is ``pi_hat``. With ``base`` (a :class:`~jaxskid.BaseParameters`) the
     estimate is of the base parameters and the reduced regressor is used.
+
+    Args:
+        dyn: lowered with ``regressor``.
+        reference: the desired joint positions, a function ``q_d(t) -> (n,)`` that JAX can differentiate twice
+            (its velocity and acceleration are taken by forward mode), or a constant set-point ``(n,)``.
+        estimate: the initial ``pi_hat``, ``(n_params,)`` (``(n_base,)`` with ``base``).
+        lam: ``lam``, the gain of the position error in the reference velocity ``v``.
+        kd: the gain of ``s`` in the torque.
+        gamma: the adaptation gain (a scalar, or ``(n_params,)`` per parameter).
+        base: a :class:`~jaxskid.BaseParameters` to estimate the base parameters; ``None``: all of them.
+        params: the parameters of the regressor's constants (``None``: the defaults).
     """
 
     def __init__(self, dyn: Dynamics, reference, estimate, *, lam, kd, gamma, base=None, params=None):

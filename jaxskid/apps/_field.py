@@ -66,8 +66,8 @@ class _Policy(Controller):
 
 
 class HeldInput(NamedTuple):
-    """A :class:`Controller` fed an input array ``(steps, n)`` (``(..., steps, n)``: one per rollout of a
-    batch) held over each step exactly as array torques are: every stage of a step sees ``u[k]``, and the
+    """A :class:`Controller` ``controller`` fed an array ``inputs`` ``(steps, n)`` (``(..., steps, n)``: one per
+    rollout of a batch) held over each step exactly as array torques are: every stage of a step sees ``u[k]``, and the
     controller gives ``(tau, dz/dt) = controller(t, x, z, u_k)``. The array is an input of the compiled
     rollout (a new one does not recompile; it can be batched and differentiated), not part of the controller.
     """

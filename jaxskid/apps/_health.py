@@ -118,3 +118,29 @@ def warn_if_unstable(dyn, controls, x_final, dt, params=None, stacklevel: int = 
             f"{complex(fastest):.4g} 1/s): the integrator injects energy. dt <= {fix:.3g} s keeps every mode "
             f"stable (or lower the stiffness or damping that makes it)", RolloutWarning, stacklevel=stacklevel)
     return check
+
+
+def warn_if_below_ground(contact, x_final, stacklevel: int = 3) -> np.ndarray:
+    """One :class:`RolloutWarning` where a floating base ends below the ground of ``contact`` (a
+    :class:`~jaxskid.GroundContact`) and none of its contact frames is on the base
+    (:meth:`~jaxskid.GroundContact.on_base`): nothing holds the base up, so it falls through the floor. Returns
+    whether each rollout's base ended below the ground ``(...)`` (all False for a fixed base or a base with
+    contact frames)."""
+    x_final = np.asarray(x_final)
+    height = float(contact.height)
+    below = x_final[..., 2] < height
+    if not contact.dyn.floating_base or not below.any() or contact.on_base():
+        return np.zeros(x_final.shape[:-1], bool)
+    bad = np.argwhere(np.atleast_1d(below))
+    if bad.size:
+        names = ", ".join(str(tuple(int(i) for i in b)) if len(b) > 1 else str(int(b[0])) for b in bad[:5])
+        more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+        which = f"rollouts {names}{more} of {np.size(below)}" if np.ndim(below) else "the rollout"
+        shown = ", ".join(contact.frames[:4]) + (", ..." if len(contact.frames) > 4 else "")
+        warnings.warn(
+            f"rollout: the floating base of {which} ends below the ground (base z = "
+            f"{float(np.min(x_final[..., 2])):.3g} m < height {height:g} m), and none of GroundContact's frames "
+            f"({shown}) is on the base: it passes through the floor. Give the base contact points: "
+            f"jaxskid.collision_points(urdf, links=[<base link>]) as end-effectors, and their radii to "
+            f"GroundContact", RolloutWarning, stacklevel=stacklevel)
+    return below

@@ -32,7 +32,7 @@ from ..runtime._batching import batch_shape, float_arrays
 from ..runtime._dynamics import Dynamics
 from ..runtime._forward import require_solver
 from ..runtime._implicit import AUTODIFF
-from ..runtime._checks import check_finite
+from ..runtime._checks import check_inputs
 from ..runtime._jit import forward_mode, jit, top_level, traced
 from ..runtime._free_flyer import normalize
 from ..runtime._rk4 import feedback_rk4, held_torque_rk4, hoist
@@ -227,9 +227,9 @@ def rollout(
             number). For several hosts, call ``jax.distributed.initialize()`` first and pass
             ``jax.devices()``.
         stabilization, regularization: a constrained robot's (module docstring; :func:`constrained_forward_dynamics`).
-        health: check that RK4's step integrates the closed loop at the final states stably, and warn
-            (:class:`RolloutWarning`, naming the rollouts and a step that would) where it does not
-            (:mod:`jaxskid.apps._health`); ``None``: with :class:`GroundContact` only. Called from Python only.
+        health: from Python, warn (:class:`RolloutWarning`) where RK4's step does not integrate the closed loop
+            at the final states stably, naming the rollouts and a step that would (:mod:`jaxskid.apps._health`),
+            and where a floating base ends below the ground with no contact frame on it; ``None``: with contact.
 
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
@@ -270,13 +270,16 @@ def _batch(dyn, x0, p, u, dt, steps: int) -> tuple:
 
 def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> Trajectory:
     """``traj``, after :func:`~jaxskid.apps._health.warn_if_unstable` on its final states where ``health`` asks
-    for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set."""
+    for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set, and
+    :func:`~jaxskid.apps._health.warn_if_below_ground` in a scene with ground contact."""
     from ._contact import GroundContact
-    from ._health import warn_if_unstable
+    from ._health import warn_if_below_ground, warn_if_unstable
 
     dyn, controller, integrator = static[:3]
     if health is None:
         health = isinstance(controller, GroundContact)
+    if health and isinstance(controller, GroundContact) and top_level((traj.x,)):
+        warn_if_below_ground(controller, traj.x[..., -1, :], stacklevel=4)
     if not health or not classical_rk4(integrator) or not top_level((traj.x, dt)) or np.ndim(dt) or \
             (params is not None and np.ndim(dyn.param_vector(params)) > 1):
         return traj
@@ -287,9 +290,8 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
 
 def _inputs(dyn, x0, u):
     """``(x0, u, dtype)``: the initial states and the torque or input array (or None) in one floating dtype,
-    checked for NaN and inf at the top level (:func:`~jaxskid.runtime._checks.check_finite`)."""
-    if dyn.checks and top_level((x0, u)):
-        check_finite("rollout", [("x0", x0), ("controls", u)])
+    checked for NaN and inf (:func:`~jaxskid.runtime._checks.check_inputs`)."""
+    check_inputs(dyn.checks, "rollout", [("x0", x0), ("controls", u)])
     arrays, dtype = float_arrays([x0] if u is None else [x0, u])
     return arrays[0], (arrays[1] if u is not None else None), dtype
 

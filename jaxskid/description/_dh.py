@@ -59,7 +59,8 @@ _MOVES = {"revolute": "theta", "prismatic": "d"}  # the entry the joint variable
 class DH:
     """One row of a Denavit–Hartenberg table: the joint's type and its four parameters (all required).
 
-    In the ``modified`` convention ``a`` and ``alpha`` are Craig's ``a_{i-1}`` and ``alpha_{i-1}``. Entries are
+    ``type``: ``"revolute"`` (``theta`` is the joint variable's offset) or ``"prismatic"`` (``d`` is);
+    ``a``: the link length, ``alpha``: the link twist, ``d``: the link offset, ``theta``: the joint angle. In the ``modified`` convention ``a`` and ``alpha`` are Craig's ``a_{i-1}`` and ``alpha_{i-1}``. Entries are
     numbers, strings (``"pi/2"``, ``"a2"``) or SymPy expressions; angles in radians.
     """
 

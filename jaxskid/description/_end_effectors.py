@@ -6,7 +6,8 @@ merged into a body, or the base), as a description's ``ee`` with ``ee_parent`` i
 were end-effectors before stay named frames. ``pose`` takes the forms of a description's pose
 (:meth:`~._yaml_values.ValueReader.pose`): a 4x4 matrix (nested lists, a NumPy array or a SymPy matrix),
 ``{"xyzrpy": [x, y, z, roll, pitch, yaw]}`` or ``{"translation": [...], "rotation": ...}``; ``None`` is the
-link's own frame.
+link's own frame. ``{name: (name, None)}`` keeps the robot's frame ``name`` (a foot) as an end-effector, beside
+new ones (:func:`jaxskid.collision_points`).
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ def with_end_effectors(robot: Robot, end_effectors: Mapping, *, source: str | No
             if not isinstance(entry, (tuple, list)) or len(entry) != 2 or not isinstance(entry[0], str):
                 raise ModelError(f"expected (link name, pose), got {describe_value(entry)}", where=where)
             link, pose = entry
+            if name == link and pose is None and link in robot.frame_names:  # the frame itself, kept
+                continue
             if link not in robot.frame_names:
                 raise ModelError(f"unknown link {link!r}; expected one of {', '.join(robot.frame_names)}", where=where)
             parent = robot.frame(link)

@@ -37,8 +37,8 @@ Wrenches = tuple[tuple[sp.Expr, ...], ...]
 class DescriptionExtras:
     """What a description gives beyond the :class:`Robot`: symbol names and end-effector wrenches.
 
-    ``q``..``q4d``: the names of the joint positions and their time derivatives (n each; Skidy's defaults
-    ``d<q>``, ``dd<q>``.. when absent).
+    ``q``, ``qd``, ``q2d``, ``q3d``, ``q4d``: the names of the joint positions and their time derivatives (n
+    each; Skidy's defaults ``d<q>``, ``dd<q>``.. when absent). ``end_effectors``: the end-effector names.
 
     ``wrench``, ``wrench_d``, ``wrench_2d``: ``WEE``, ``WDEE``, ``W2DEE`` in jaxskid's convention, one
     6-vector ``(moment, force)`` per end-effector in the order of ``end_effectors``, acting at the

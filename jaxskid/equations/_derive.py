@@ -73,10 +73,17 @@ class Quantity:
 
 @dataclass(frozen=True)
 class Equations:
-    """The requested quantities of one robot as a shared straight-line program.
+    """The requested quantities of one robot as a shared straight-line program. Made by :func:`jaxskid.derive`.
 
-    ``assignments`` are ``(symbol, expression)`` pairs in dependency order; each quantity's outputs are
-    expressions of these symbols, of the argument symbols and of the parameter symbols.
+    Args:
+        robot: the :class:`~jaxskid.Robot` they were derived for.
+        parameters: the parameter names, the order of the parameter vector ``p``.
+        param_symbols: the SymPy symbols of ``parameters``, in the same order.
+        arguments: argument name (``q``, ``qd``, ...) -> its symbols and shape.
+        quantities: quantity name -> its outputs, argument signature, shape and equation.
+        assignments: ``(symbol, expression)`` pairs in dependency order; each quantity's outputs are
+            expressions of these symbols, of the argument symbols and of the parameter symbols.
+        options: the :class:`~jaxskid.Options` they were derived with.
     """
 
     robot: Robot

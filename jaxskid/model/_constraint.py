@@ -46,7 +46,9 @@ KINDS = {"point": AXES[3:], "frame": AXES}
 
 @dataclass(frozen=True)
 class PointContact:
-    """The origin of ``frame`` held at the world point ``position`` (3 values; ``None``: where it is at ``at``)."""
+    """The origin of ``frame`` held at the world point ``position`` (3 values; ``None``: where it is at ``at``),
+    along the world ``axes`` (a subset of ``("x", "y", "z")``; ``None``: all three); ``at``: joint name ->
+    position of the configuration that gives the anchor (``None``: ``q = 0``)."""
 
     frame: str
     position: tuple | None = None
@@ -87,7 +89,9 @@ class PointContact:
 
 @dataclass(frozen=True)
 class FrameContact:
-    """``frame`` held at the world pose ``pose`` (4x4; ``None``: where it is at ``at``)."""
+    """``frame`` held at the world pose ``pose`` (4x4; ``None``: where it is at ``at``), along ``axes`` (a subset
+    of :data:`AXES`; ``None``: all six); ``at``: joint name -> position of the configuration that gives the
+    anchor (``None``: ``q = 0``)."""
 
     frame: str
     pose: sp.ImmutableMatrix | None = None
@@ -122,8 +126,8 @@ class FrameContact:
 
 @dataclass(frozen=True)
 class LoopClosure:
-    """Two frames of the tree held together: ``kind`` is ``"point"`` (their origins), ``"frame"`` (their poses)
-    or a subset of :data:`AXES` (world-aligned rows)."""
+    """Two frames of the tree, ``frame_a`` and ``frame_b``, held together: ``kind`` is ``"point"`` (their
+    origins), ``"frame"`` (their poses) or a subset of :data:`AXES` (world-aligned rows)."""
 
     frame_a: str
     frame_b: str

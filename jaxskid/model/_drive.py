@@ -28,7 +28,14 @@ DRIVE_PARAMETER_NAMES = ("Ia", "fv", "fc", "fo")
 
 @dataclass(frozen=True)
 class Drive:
-    """A joint's drive (see the module docstring): numbers, parameter names or expressions."""
+    """A joint's drive (see the module docstring): numbers, parameter names or expressions.
+
+    Args:
+        armature: ``Ia``, the rotor inertia reflected at the joint [kg m^2; kg for a prismatic joint].
+        viscous: ``fv``, the viscous friction coefficient [N m s; N s].
+        coulomb: ``fc``, the Coulomb friction torque [N m; N].
+        offset: ``fo``, a constant torque offset [N m; N].
+    """
 
     armature: sp.Expr = sp.Integer(0)
     viscous: sp.Expr = sp.Integer(0)

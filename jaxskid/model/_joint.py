@@ -23,7 +23,20 @@ from ._mimic import Mimic
 
 @dataclass(frozen=True)
 class Joint:
-    """One joint and the body it moves (see the module docstring for the conventions)."""
+    """One joint and the body it moves (see the module docstring for the conventions).
+
+    Args:
+        name: the joint's name.
+        type: ``"revolute"`` or ``"prismatic"``.
+        parent: the index of the parent body (``-1``: the world, or the floating base).
+        origin: ``B_i``, the 4x4 pose of the body's frame in its parent's frame at ``q = 0``.
+        screw: ``X_i``, the joint's unit screw coordinates ``(omega, v)`` in the body's frame.
+        inertia: the body's 6x6 mass-inertia matrix in its own frame.
+        link: the name of the body (its URDF link).
+        drive: the joint's :class:`~jaxskid.Drive`, ``None`` for none.
+        mimic: the joint this one follows (below), ``None``: independent.
+        limits: its :class:`~jaxskid.JointLimits` (below), ``None``: none given.
+    """
 
     name: str
     type: str
@@ -76,7 +89,8 @@ class JointLimits:
 
 @dataclass(frozen=True)
 class Frame:
-    """A named frame rigidly attached to body ``body`` (``-1``: the world) at pose ``offset``."""
+    """A frame called ``name`` rigidly attached to body ``body`` (its index; ``-1``: the world) at the 4x4 pose
+    ``offset`` in that body's frame."""
 
     name: str
     body: int

@@ -18,7 +18,7 @@ from . import _free_flyer as _ff
 import numpy as np
 
 from .._errors import InputError, RequestError
-from ._checks import InertiaCheck
+from ._checks import InertiaCheck, checks_mode
 from ..model._parameters import ParameterLayout
 from ._parameters import HostParameters, param_array
 
@@ -63,7 +63,8 @@ class QuantitySet:
             ``"skidy"``.
         checks: whether top-level calls check their inputs (:mod:`jaxskid.runtime._checks`): NaN or inf in
             a state or a parameter, parameter values that are not numbers, masses and inertias no rigid body
-            has. Inside a caller's ``jit``, ``grad`` or ``vmap`` nothing is checked.
+            has. Inside a caller's ``jit``, ``grad`` or ``vmap`` nothing is checked, unless ``"debug"``
+            (:func:`jaxskid.runtime._checks.check_inputs`).
     """
 
     _made = "made"
@@ -82,7 +83,7 @@ class QuantitySet:
         driven: Sequence[str] = (),
         floating_base: bool = False,
         inertia: Callable[[], tuple] | None = None,
-        checks: bool = True,
+        checks: bool | str = True,
         standard_names: Sequence[str] = (),
         coriolis: str = "christoffel",
     ):
@@ -108,7 +109,7 @@ class QuantitySet:
         for a module generated before they were recorded."""
         self.coriolis: str = coriolis
         """The factorisation of ``coriolis_matrix``: ``"christoffel"`` (``dM/dt - 2C`` skew) or ``"skidy"``."""
-        self.checks: bool = bool(checks)
+        self.checks: bool | str = checks_mode(checks)
         """Whether top-level calls check their inputs (see the ``checks`` argument)."""
         self._inertia_source = inertia
         self._inertia: InertiaCheck | None = None

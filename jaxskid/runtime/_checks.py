@@ -3,8 +3,8 @@
 * :func:`check_finite`: NaN or inf in a state argument raises :class:`~jaxskid.InputError` naming the
   argument, the first bad index and its value (a NaN ``q`` would otherwise give a partly NaN ``M`` and a
   rollout NaN to its end).
-* :class:`InertiaCheck`: a parameter vector that gives a body a negative mass, or a rotational inertia about
-  its centre of mass that is not positive semi-definite (``I_C = I_O + h~ h~ / m``, with ``h = m c``),
+* :class:`InertiaCheck`: a parameter vector that gives a body a negative mass, no mass with a first moment
+  ``m c``, or a rotational inertia about its centre of mass that is not positive semi-definite (``I_C = I_O + h~ h~ / m``, with ``h = m c``),
   raises :class:`~jaxskid.InputError` naming the parameters of the body: the mass matrix is then not
   positive definite and forward dynamics meaningless. A body whose standard parameters equal the
   defaults' is not checked again (they were checked at load, :mod:`jaxskid.model._inertia_check`). The
@@ -12,8 +12,17 @@
   it and still reproduce the torques they were fitted to, and planar models give the moment about their
   axis only.
 
-Only concrete values are checked: inside a caller's ``jit``, ``grad`` or ``vmap`` the inputs are tracers,
-and the checks are skipped. ``jaxskid.lower(..., checks=False)`` skips them at the top level too.
+Only concrete values are checked by default: inside a caller's ``jit``, ``grad`` or ``vmap`` the inputs are
+tracers, and the checks are skipped. ``jaxskid.lower(..., checks=False)`` skips them at the top level too.
+
+``jaxskid.lower(..., checks="debug")`` checks traced states as well (:func:`check_inputs`): each call stages,
+into the caller's program, a test of its state arguments for NaN and inf, and a host callback
+(``jax.debug.callback``) that raises :class:`~jaxskid.InputError` with the same message as at the top level. The
+compiled program then fails with ``jax.errors.JaxRuntimeError``, whose message ends with that
+``InputError``'s (``mass_matrix: q[3, 2] is nan: ...``). Under ``vmap`` the batch's first bad index is named,
+batch axes included, from one callback per call (:func:`jax.custom_batching.custom_vmap`: JAX would otherwise
+unroll the callback over the batch); ``grad`` and ``jvp`` check the primal values. The test costs a reduction
+over the states and a host call per evaluation: a debugging aid, off by default.
 """
 
 from __future__ import annotations
@@ -25,8 +34,13 @@ from collections.abc import Callable, Iterable, Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.custom_batching import custom_vmap
 
-from .._errors import InputError
+from .._errors import InputError, RequestError
+from ._jit import top_level
+
+CHECKS = (True, False, "debug")
+"""The values of ``lower(..., checks=...)``: top-level calls only, none, or traced calls too."""
 
 
 def _concrete(value):
@@ -72,6 +86,66 @@ def check_finite(where: str, named: Iterable[tuple[str, object]]) -> None:
         raise InputError(f"{where}: {shown} is {array[index]}: expected finite values (no NaN or inf)")
 
 
+def checks_mode(checks) -> bool | str:
+    """``checks`` checked to be one of :data:`CHECKS`."""
+    if checks is None or not any(checks is c or (isinstance(checks, str) and checks == c) for c in CHECKS):
+        raise RequestError(f"checks: expected True (check calls from Python), False or 'debug' (check inside "
+                           f"jit, grad and vmap too), got {checks!r}")
+    return checks
+
+
+def check_inputs(checks, where: str, named: Iterable[tuple[str, object]], names: Sequence[str] = ()) -> None:
+    """The checks of ``lower(..., checks=...)`` on a call's state arguments ``(name, value)``: at the top level
+    :func:`check_finite`; inside a caller's trace, with ``checks="debug"``, :func:`stage_finite` (module
+    docstring); else nothing. ``names``: the names of a ``params`` argument's last axis (for its message)."""
+    if not checks:
+        return
+    named = [(name, value) for name, value in named if value is not None]
+    if top_level(tuple(value for _, value in named)):
+        check_finite(where, named)
+    elif checks == "debug":
+        stage_finite(where, named, names)
+
+
+def stage_finite(where: str, named: Iterable[tuple[str, object]], names: Sequence[str] = ()) -> None:
+    """:func:`check_finite` for traced values: concrete ones are checked now, traced ones in the program being
+    traced (module docstring). ``names``: the names of the entries of the last axis of an argument called
+    ``params``, named in its message."""
+    concrete = [(name, value) for name, value in named if not isinstance(value, jax.core.Tracer)]
+    check_finite(where, concrete)
+    for name, value in named:
+        if isinstance(value, jax.core.Tracer) and jnp.issubdtype(value.dtype, jnp.inexact):
+            _staged_check(where, name, tuple(names) if name == "params" else ())(jax.lax.stop_gradient(value))
+
+
+@functools.lru_cache(maxsize=256)
+def _staged_check(where: str, name: str, names: tuple[str, ...]) -> Callable:
+    """``check(x)``: stages the test of ``x`` for NaN and inf and the callback that raises; batched by one test
+    of the whole batch (its first bad index named with the batch axes)."""
+
+    def host(bad, first, value, *, shape):
+        if bool(bad):
+            index = np.unravel_index(int(first), shape)
+            shown = f"{name}[{', '.join(map(str, index))}]" if shape else name
+            named = f" ({names[index[-1]]})" if names and shape and shape[-1] == len(names) else ""
+            raise InputError(f"{where}: {shown}{named} is {value}: expected finite values (no NaN or inf)")
+
+    @custom_vmap
+    def check(x):
+        flat = jnp.ravel(x)
+        bad = ~jnp.isfinite(flat)
+        first = jnp.argmax(bad)
+        jax.debug.callback(functools.partial(host, shape=tuple(x.shape)), bad.any(), first, flat[first])
+        return jnp.zeros((), bool)
+
+    @check.def_vmap
+    def _batched(axis_size, in_batched, x):  # the batch axis is in front: one test of the whole batch
+        del axis_size, in_batched
+        return check(x), False
+
+    return check
+
+
 class InertiaCheck:
     """The physical check of parameter vectors (module docstring).
 
@@ -102,6 +176,13 @@ class InertiaCheck:
             (np.abs(pi - self.reference) > 1e-12 * (1 + np.abs(self.reference))).reshape(-1, *pi.shape[-2:]).any(axis=(0, 2))
         if not changed.any():
             return
+        h_norm = np.abs(pi[..., 1:4]).max(axis=-1)
+        hollow = (m == 0) & (h_norm > 0) & changed  # no mass, yet a first moment m c: no body has it
+        if hollow.any():
+            k = int(np.argmax(hollow.reshape(-1, m.shape[-1]).any(axis=0)))
+            raise InputError(f"{where}: {self._named(k, 1, p)} give body {self.bodies[k]!r} the mass 0 with a first "
+                             f"moment of mass (m c) of size {float(np.max(h_norm[..., k])):g}: expected a mass > 0, or "
+                             f"mcx = mcy = mcz = 0 for a massless body")
         sub = pi[..., changed, :]
         mass, h, about_origin = sub[..., 0], sub[..., 1:4], _rotational(sub[..., 4:])
         hx = _skew(h)

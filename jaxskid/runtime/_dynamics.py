@@ -25,7 +25,7 @@ from ._ffi import enabled as native_enabled, library, log, native_quantity, targ
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._forward import accelerations, forward_dynamics
-from ._checks import check_finite
+from ._checks import check_finite, check_inputs
 from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
 from ._parameters import param_array
@@ -376,6 +376,9 @@ class Dynamics(QuantitySet):
                 self._check_not_a_wrench(name, params, call)
             if self.checks and top_level(state):
                 check_finite(name, zip(args, state))
+            elif self.checks == "debug":  # inside a caller's jit, grad or vmap: a check staged into its program
+                check_inputs("debug", name, [*zip(args, state), ("params", params), ("wrench", wrench)],
+                             self.parameters)
             if params is not None:  # None stays: the defaults become constants of the compiled program
                 params = self._packed(params)
             if out is not None:

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
 from ._ffi import native_quantity
-from ._checks import check_finite
+from ._checks import check_inputs
 from ._jit import jit, top_level, traced
 from ._implicit import differentiable
 from ._ldl import materialize
@@ -133,8 +133,7 @@ def forward_dynamics(dyn, q, qd, tau, params=None, *, wrench=None) -> jax.Array:
     require_solver(dyn, "forward_dynamics")
     if wrench is not None and "external_torques" not in dyn.quantities:
         raise RequestError("forward_dynamics with a wrench needs the quantity external_torques; lower it too")
-    if dyn.checks and top_level((q, qd, tau, wrench)):
-        check_finite("forward_dynamics", [("q", q), ("qd", qd), ("tau", tau), ("wrench", wrench)])
+    check_inputs(dyn.checks, "forward_dynamics", [("q", q), ("qd", qd), ("tau", tau), ("wrench", wrench)])
     params = dyn._packed(params)
     # Called from Python without a wrench: the native kernel, where there is one. Inside a caller's trace
     # (a rollout, a user's loop) the JAX form stays, which XLA fuses with the rest of the program.

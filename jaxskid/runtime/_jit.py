@@ -11,7 +11,9 @@ from collections.abc import Callable
 
 import jax
 
-from .._xla_flags import classic_emitters_switch
+from .._xla_flags import classic_emitters_switch, prefer_synchronous_cpu_dispatch
+
+prefer_synchronous_cpu_dispatch()
 
 
 def compiler_options() -> dict:
