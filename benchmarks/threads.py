@@ -6,8 +6,8 @@
 jaxskid's native kernels run their batches on XLA's own intra-op thread pool (``pool_threads`` in
 ``jaxskid/lowering/_ffi_batch.py``), which XLA sizes to the cores the process may run on (its affinity mask), so
 the kernels and XLA's own work share one pool. Each task runs in fresh processes, under ``taskset -c 0`` and
-without, each with jaxskid's synchronous CPU dispatch and with JAX's asynchronous one
-(``JAXSKID_ASYNC_DISPATCH=1``), the variants alternated round by round (their order rotated every round) so
+without, each with JAX's asynchronous CPU dispatch (the default) and with the synchronous one
+(``JAXSKID_SYNC_DISPATCH=1``), the variants alternated round by round (their order rotated every round) so
 that the machine's other load hits all alike (``--busy N`` adds N busy-looping processes as load), after one
 unmeasured run that fills jaxskid's cache (the generated module and native library); the table gives the
 medians, the slowest runs and unpinned / pinned (the goal: at most 1.3):
@@ -68,7 +68,7 @@ def run(task: str, pinned: bool, asynchronous: bool = False) -> dict:
         command = [*prefix, sys.executable, str(Path(__file__).resolve()), "--worker"]
     else:
         command = [*prefix, *SCALING, "--plot", str(Path(tempfile.mkdtemp()) / "scaling.png")]
-    env = {**os.environ, "JAXSKID_ASYNC_DISPATCH": "1" if asynchronous else "0"}
+    env = {**os.environ, "JAXSKID_SYNC_DISPATCH": "0" if asynchronous else "1"}
     start = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, cwd=HERE.parent, check=True, env=env)
     wall = time.perf_counter() - start
@@ -93,7 +93,7 @@ def main() -> None:
     parser.add_argument("--tasks", default="excitation,scaling")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--dispatch", default="sync,async",
-                        help="sync: jaxskid's default; async: JAX's own (JAXSKID_ASYNC_DISPATCH=1)")
+                        help="sync: JAXSKID_SYNC_DISPATCH=1; async: JAX's default, jaxskid's too")
     parser.add_argument("--busy", type=int, default=0, help="busy-looping processes to run beside, as other load")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     doc_tables.add_option(parser)

@@ -52,8 +52,8 @@ def prefer_classic_emitters() -> bool:
     return True
 
 
-ASYNC_DISPATCH_VARIABLE = "JAXSKID_ASYNC_DISPATCH"
-"""Set to 1 to keep JAX's asynchronous dispatch on CPU (:func:`prefer_synchronous_cpu_dispatch`)."""
+SYNC_DISPATCH_VARIABLE = "JAXSKID_SYNC_DISPATCH"
+"""Set to 1 to run JAX's CPU computations on the calling thread (:func:`prefer_synchronous_cpu_dispatch`)."""
 
 
 def prefer_synchronous_cpu_dispatch() -> bool:
@@ -63,12 +63,12 @@ def prefer_synchronous_cpu_dispatch() -> bool:
     With asynchronous dispatch every call hands its computation to another thread and the caller then waits
     for it; on a machine whose cores other processes keep busy, each hand-over waits for the scheduler, and a
     loop of small calls that reads every result (:func:`jaxskid.design_excitation`'s optimiser) runs several
-    times slower free to use every core than pinned to one (``benchmarks/threads.py`` measures both). Calls
-    from Python return when their result is ready, as jaxskid's calls that read it wait for anyway. ``JAXSKID_ASYNC_DISPATCH=1`` in the environment keeps
-    JAX's default. Called when jaxskid's runtime is imported (it imports JAX); returns whether it set the
-    option.
+    times slower free to use every core than pinned to one (``benchmarks/threads.py`` measures both). A large
+    batched rollout, though, runs several times slower on the calling thread (``examples/quadruped_drop.py``),
+    so JAX's default stays: ``JAXSKID_SYNC_DISPATCH=1`` in the environment asks for this. Called when jaxskid's
+    runtime is imported (it imports JAX); returns whether it set the option.
     """
-    if os.environ.get(ASYNC_DISPATCH_VARIABLE, "0") not in ("", "0"):
+    if os.environ.get(SYNC_DISPATCH_VARIABLE, "0") in ("", "0"):
         return False
     try:
         import jax

@@ -187,10 +187,10 @@ def test_no_classic_emitters_switch_where_xla_lacks_it(monkeypatch):
     assert _xla_flags.classic_emitters_switch() and compiler_options() == {"xla_cpu_use_fusion_emitters": False}
 
 
-def test_synchronous_cpu_dispatch_when_the_runtime_is_imported():
-    """Importing jaxskid's runtime before JAX's backends start turns JAX's asynchronous CPU dispatch off
-    (benchmarks/threads.py: a loaded machine made every hand-over wait); JAXSKID_ASYNC_DISPATCH=1 keeps it, and
-    a process whose backends started first keeps what it had."""
+def test_synchronous_cpu_dispatch_when_asked_for():
+    """With JAXSKID_SYNC_DISPATCH=1, importing jaxskid's runtime before JAX's backends start turns JAX's
+    asynchronous CPU dispatch off (benchmarks/threads.py: a loaded machine made every hand-over wait); without
+    it JAX's default stays, and a process whose backends started first keeps what it had."""
     import os
 
     probe = "from jax._src import xla_bridge; print(xla_bridge._CPU_ENABLE_ASYNC_DISPATCH.value)"
@@ -198,10 +198,10 @@ def test_synchronous_cpu_dispatch_when_the_runtime_is_imported():
         "import jaxskid.runtime._jit; " + probe: "False",
         "import jax; jax.devices(); import jaxskid.runtime._jit; " + probe: "True",
     }
-    env = {k: v for k, v in os.environ.items() if k != "JAXSKID_ASYNC_DISPATCH"}
+    env = {**os.environ, "JAXSKID_SYNC_DISPATCH": "1"}
     for script, expected in scripts.items():
         out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
         assert out.stdout.split() == [expected], (script, out.stderr[-1000:])
     out = subprocess.run([sys.executable, "-c", next(iter(scripts))], capture_output=True, text=True,
-                         env={**env, "JAXSKID_ASYNC_DISPATCH": "1"}, timeout=300)
+                         env={k: v for k, v in os.environ.items() if k != "JAXSKID_SYNC_DISPATCH"}, timeout=300)
     assert out.stdout.split() == ["True"], out.stderr[-1000:]
