@@ -6,7 +6,7 @@ sec. IV.2). Where ``|R(h lambda)| > 1`` for a mode the system itself damps (``Re
 integrator injects energy there: stiff contact springs and joint dampers on light links do this to a
 quadruped at 1 ms (solo12, ``examples/quadruped_drop.py``: ``KD = 0.5`` on its knees puts an eigenvalue near
 -1.3e3 to -4.9e3 s^-1 into the loop). :func:`step_stability` linearises the rollout's own vector field
-(controller and contacts included) at given states by forward-mode differentiation, takes the eigenvalues
+(controller and contacts included) at given states by reverse-mode differentiation, takes the eigenvalues
 and finds the largest step that keeps every damped mode within RK4's stability region.
 :func:`jaxskid.rollout` runs it by default on the final states of rollouts with :class:`GroundContact`, and
 warns once per call, naming the rollouts and that step; ``health=True`` asks for it in any scene and
@@ -71,7 +71,7 @@ def step_stability(dyn, controls, x, dt: float, params=None) -> StepStability:
     controller, _ = as_controls(controls)
     x = jnp.asarray(x)
     p = dyn.param_vector(params, x.dtype)
-    field = dynamics_field(dyn, controller, p, False, "forward")
+    field = dynamics_field(dyn, controller, p, False, "reverse")
     nq = dyn.nq
     z0 = controller.init(x[(0,) * (x.ndim - 1)]) if controller is not None else ()
 
@@ -80,7 +80,9 @@ def step_stability(dyn, controls, x, dt: float, params=None) -> StepStability:
         return jnp.concatenate([dq, dv])
 
     flat = x.reshape((-1, x.shape[-1]))
-    jac = np.asarray(jax.jit(jax.vmap(jax.jacfwd(rate)))(flat))
+    # reverse mode: the quantities' closed-form pullbacks (native kernels on CPU) rather than forward mode
+    # through their JAX form, whose program for a dozen contact frames took a minute to compile
+    jac = np.asarray(jax.jit(jax.vmap(jax.jacrev(rate)))(flat))
     amplification, fastest, stable = [], [], []
     for j in jac:
         ev = np.linalg.eigvals(j)
