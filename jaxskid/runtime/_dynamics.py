@@ -137,7 +137,8 @@ class Dynamics(QuantitySet):
         # the quantity functions, as attributes (the methods of the same name, forward_dynamics, stay)
         self._quantities: dict[str, Quantity] = {
             name: Quantity(name, tuple(m["args"]), tuple(m["shape"]), m["equation"], m["doc"],
-                           tuple(self.argument_shape(a) for a in m["args"]), name == "inverse_dynamics")
+                           tuple(self.argument_shape(a) for a in m["args"]), name == "inverse_dynamics",
+                           self.floating_base)
             for name, m in quantities.items()
         }
         for name, quantity in self._quantities.items():

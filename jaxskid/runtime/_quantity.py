@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 _ARGUMENT_UNITS = {
-    "q": "rad (revolute) or m (prismatic); a floating base's position in m and unit quaternion first",
+    "q": "rad (revolute) or m (prismatic)",
     "qd": "rad/s or m/s",
     "qdd": "rad/s^2 or m/s^2",
     "q3d": "rad/s^3 or m/s^3",
@@ -61,6 +61,8 @@ class Quantity:
     doc: str
     arg_shapes: tuple[tuple[int, ...], ...]
     takes_wrench: bool = False
+    floating_base: bool = False
+    """Whether the robot floats: its base's position and quaternion, or twist, come first in the states."""
 
     @property
     def call(self) -> str:
@@ -84,6 +86,9 @@ class Quantity:
         lines = [f"{self.equation}: {self.doc}", "", "Args:"]
         for a, shape in zip(self.args, self.arg_shapes):
             unit = _ARGUMENT_UNITS.get(a.rstrip("0123456789"), "")
+            if self.floating_base and a in ("q", "qd"):
+                unit += ("; the floating base's position in m and unit quaternion (x, y, z, w) first" if a == "q"
+                         else "; the floating base's twist (omega in rad/s, v in m/s, base frame) first")
             lines.append(f"    {a}: {_shape(shape)}, or (..., {', '.join(map(str, shape))}) for a batch"
                          f"{'; ' + unit if unit else ''}.")
         lines.append("    params: None (the defaults), a dict name -> value, or a vector (..., n_params) in the "
