@@ -75,25 +75,34 @@ def test_forward_mode_equals_reverse_mode(arm):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12 * np.abs(b).max())
 
 
+def _complex_rk4(f, x0, dt, u):
+    """The classical RK4 of ``dx/dt, tau = f(t, x, u_k)`` from ``x0`` over the rows ``u_k`` of ``u`` (held over
+    each step), in complex arithmetic: the states ``(steps + 1, n)`` and each step's first-stage ``tau``."""
+    def step(x, ku):
+        k, u_k = ku
+        t = k * dt
+        k1, tau = f(t, x, u_k)
+        k2, _ = f(t + dt / 2, x + dt / 2 * k1, u_k)
+        k3, _ = f(t + dt / 2, x + dt / 2 * k2, u_k)
+        k4, _ = f(t + dt, x + dt * k3, u_k)
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return x, (x, tau)
+
+    x0 = x0.astype(complex)
+    _, (xs, taus) = jax.lax.scan(step, x0, (jnp.arange(u.shape[0], dtype=complex), u))
+    return jnp.concatenate([x0[None], xs]), taus
+
+
 def _complex_rollout(rec, p, x0, u):
     """RK4 over the numeric recursive dynamics, in complex arithmetic."""
     n = x0.shape[0] // 2
 
-    def f(x, tau):
+    def f(t, x, tau):
         q, qd = x[:n], x[n:]
         bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p)
-        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)])
+        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)]), tau
 
-    def step(x, tau):
-        k1 = f(x, tau)
-        k2 = f(x + DT / 2 * k1, tau)
-        k3 = f(x + DT / 2 * k2, tau)
-        k4 = f(x + DT * k3, tau)
-        x = x + DT / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x, x
-
-    _, xs = jax.lax.scan(step, x0, u)
-    x = jnp.concatenate([x0[None], xs])
+    x, _ = _complex_rk4(f, x0, DT, u)
     return jnp.sum(jnp.sin(x) * jnp.arange(1, x.shape[-1] + 1)[None, :])
 
 
@@ -199,23 +208,13 @@ def _complex_feedback_rollout(rec, p, kp, dt):
     """RK4 under the same PD law over the numeric recursive dynamics, in complex arithmetic."""
     n = 3
 
-    def f(t, x):
+    def f(t, x, _):
         q, qd = x[:n], x[n:]
         tau = kp * (_reference(t) - q) - 0.2 * qd + rec.inverse_dynamics(q, 0 * q, 0 * q, p)
         bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p)
         return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)]), tau
 
-    def step(x, k):
-        t = k * dt
-        k1, tau = f(t, x)
-        k2, _ = f(t + dt / 2, x + dt / 2 * k1)
-        k3, _ = f(t + dt / 2, x + dt / 2 * k2)
-        k4, _ = f(t + dt, x + dt * k3)
-        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x, (x, tau)
-
-    _, (xs, taus) = jax.lax.scan(step, X0_FB.astype(complex), jnp.arange(STEPS, dtype=complex))
-    x = jnp.concatenate([X0_FB[None].astype(complex), xs])
+    x, taus = _complex_rk4(f, X0_FB, dt, jnp.zeros(STEPS))
     return jnp.sum(jnp.sin(x) * jnp.arange(1, 2 * n + 1)[None, :]) + 1e-3 * jnp.sum(taus**2)
 
 
@@ -256,7 +255,7 @@ def _complex_law_rollout(rec, law, plant, pc, kp, dt):
     reference's derivatives in closed form."""
     n, c = 3, jnp.asarray([1.0, -0.5, 0.8])
 
-    def f(t, x):
+    def f(t, x, _):
         q, qd = x[:n], x[n:]
         e, ed, ar = 0.3 * jnp.sin(3 * t) * c - q, 0.9 * jnp.cos(3 * t) * c - qd, -2.7 * jnp.sin(3 * t) * c
         if law == "PDGravity":
@@ -266,17 +265,7 @@ def _complex_law_rollout(rec, law, plant, pc, kp, dt):
         bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), plant)
         return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, plant), tau - bias)]), tau
 
-    def step(x, k):
-        t = k * dt
-        k1, tau = f(t, x)
-        k2, _ = f(t + dt / 2, x + dt / 2 * k1)
-        k3, _ = f(t + dt / 2, x + dt / 2 * k2)
-        k4, _ = f(t + dt, x + dt * k3)
-        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x, (x, tau)
-
-    _, (xs, taus) = jax.lax.scan(step, X0_FB.astype(complex), jnp.arange(STEPS, dtype=complex))
-    x = jnp.concatenate([X0_FB[None].astype(complex), xs])
+    x, taus = _complex_rk4(f, X0_FB, dt, jnp.zeros(STEPS))
     return jnp.sum(jnp.sin(x) * jnp.arange(1, 2 * n + 1)[None, :]) + 1e-3 * jnp.sum(taus**2)
 
 
@@ -344,7 +333,7 @@ def _complex_contact_rollout(robot, rec, height, p, k, dt):
     forward mode of the chained poses, in complex arithmetic (branches on real parts)."""
     n = 3
 
-    def f(t, x):
+    def f(t, x, _):
         q, qd = x[:n], x[n:]
         point = _frame_point(robot, rec, "gripper", q, p)
         jac = jax.jacfwd(lambda q: _frame_point(robot, rec, "gripper", q, p), holomorphic=True)(q)
@@ -356,19 +345,9 @@ def _complex_contact_rollout(robot, rec, height, p, k, dt):
         force = jnp.concatenate([-MU * normal / jnp.sqrt(jnp.sum(slide**2) + SLIP**2) * slide, normal[None]])
         tau = KP * (_reference(t) - q) - 0.2 * qd + jac.T @ force
         bias = rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p)
-        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)])
+        return jnp.concatenate([qd, jnp.linalg.solve(rec.mass_matrix(q, p), tau - bias)]), tau
 
-    def step(x, s):
-        t = s * dt
-        k1 = f(t, x)
-        k2 = f(t + dt / 2, x + dt / 2 * k1)
-        k3 = f(t + dt / 2, x + dt / 2 * k2)
-        k4 = f(t + dt, x + dt * k3)
-        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x, x
-
-    _, xs = jax.lax.scan(step, X0_FB.astype(complex), jnp.arange(STEPS, dtype=complex))
-    x = jnp.concatenate([X0_FB[None].astype(complex), xs])
+    x, _ = _complex_rk4(f, X0_FB, dt, jnp.zeros(STEPS))
     return jnp.sum(jnp.sin(x) * jnp.arange(1, 2 * n + 1)[None, :])
 
 
@@ -409,25 +388,17 @@ def _complex_loop_rollout(robot, rec, p, x0, u, dt, alpha=10.0, beta=10.0):
         gap = _frame_point(robot, rec, "coupler_end", q, p) - _frame_point(robot, rec, "rocker_tip", q, p)
         return gap[jnp.asarray([0, 2])]
 
-    def f(x, tau):
+    def f(t, x, tau):
         q, qd = x[:3], x[3:]
         a = jax.jacfwd(phi, holomorphic=True)(q)
         drift = jax.jacfwd(lambda q: jax.jacfwd(phi, holomorphic=True)(q) @ qd, holomorphic=True)(q) @ qd
         gamma = -drift - 2 * alpha * a @ qd - beta**2 * phi(q)
         kkt = jnp.block([[rec.mass_matrix(q, p), -a.T], [a, jnp.zeros((2, 2), a.dtype)]])
         rhs = jnp.concatenate([tau - rec.inverse_dynamics(q, qd, jnp.zeros_like(q), p), gamma])
-        return jnp.concatenate([qd, jnp.linalg.solve(kkt, rhs)[:3]])
+        return jnp.concatenate([qd, jnp.linalg.solve(kkt, rhs)[:3]]), tau
 
-    def step(x, tau):
-        k1 = f(x, tau)
-        k2 = f(x + dt / 2 * k1, tau)
-        k3 = f(x + dt / 2 * k2, tau)
-        k4 = f(x + dt * k3, tau)
-        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return x, x
-
-    _, xs = jax.lax.scan(step, x0, u)
-    return jnp.sum(jnp.concatenate([x0[None], xs]) ** 2)
+    x, _ = _complex_rk4(f, x0, dt, u)
+    return jnp.sum(x**2)
 
 
 @pytest.mark.slow
