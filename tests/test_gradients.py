@@ -93,6 +93,19 @@ def _complex_rk4(f, x0, dt, u):
     return jnp.concatenate([x0[None], xs]), taus
 
 
+def _check_complex_step(grads, run, base, sample=None, seed=0, rtol=1e-9, atol=1e-11):
+    """Each gradient ``grads[i]`` (of the loss with respect to argument i) against the complex step of ``run``
+    at ``base`` (the arguments in complex): ``Im run(base + i h e_k) / h``, every entry or ``sample`` of them."""
+    h, pick = 1e-30, np.random.default_rng(seed)
+    for arg, g in enumerate(grads):
+        entries = range(g.size) if sample is None else pick.choice(g.size, size=min(g.size, sample), replace=False)
+        for k in entries:
+            args = list(base)
+            args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
+            ref = float(jnp.imag(run(*args))) / h
+            np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=rtol, atol=atol * float(jnp.abs(g).max()))
+
+
 def _complex_rollout(rec, p, x0, u):
     """RK4 over the numeric recursive dynamics, in complex arithmetic."""
     n = x0.shape[0] // 2
@@ -116,14 +129,7 @@ def test_gradients_match_complex_step_of_an_independent_rollout(arm):
     base = [jnp.asarray(a, complex) for a in (p, x0, u)]  # complex throughout: one compiled reference
     np.testing.assert_allclose(loss(p, x0, u), jnp.real(run(*base)), rtol=1e-12)
     grads = jax.grad(loss, argnums=(0, 1, 2))(p, x0, u)
-    h = 1e-30
-    pick = np.random.default_rng(0)
-    for arg, g in enumerate(grads):
-        for k in pick.choice(g.size, size=min(g.size, 5), replace=False):  # a sample of the directions
-            args = list(base)
-            args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
-            ref = float(jnp.imag(run(*args))) / h
-            np.testing.assert_allclose(g.ravel()[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+    _check_complex_step(grads, run, base, sample=5)  # a sample of the directions
 
 
 def test_batched_gradient_is_the_sum_of_single_ones(arm):
@@ -227,13 +233,7 @@ def test_feedback_gradient_matches_complex_step_of_an_independent_rollout(arm):
     base = [jnp.asarray(a, complex) for a in (p, KP, dt)]
     np.testing.assert_allclose(_feedback_loss(dyn)(p, KP, dt), jnp.real(run(*base)), rtol=1e-12)
     grads = jax.grad(_feedback_loss(dyn), argnums=(0, 1, 2))(p, KP, dt)
-    h, pick = 1e-30, np.random.default_rng(1)
-    for arg, g in enumerate(grads):
-        for k in pick.choice(g.size, size=min(g.size, 5), replace=False):
-            args = list(base)
-            args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
-            ref = float(jnp.imag(run(*args))) / h
-            np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+    _check_complex_step(grads, run, base, sample=5, seed=1)
 
 
 # ---------------------------------------------------------------- closed loop: the library's tracking laws
@@ -281,13 +281,7 @@ def test_tracking_law_gradients_match_complex_step_of_an_independent_rollout(arm
     loss = _law_loss(dyn, law)
     np.testing.assert_allclose(loss(p, KP, dt), jnp.real(run(*base)), rtol=1e-12)
     grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(p, KP, dt)
-    h = 1e-30
-    for arg, g in enumerate(grads):
-        for k in range(g.size):
-            args = list(base)
-            args[arg] = (base[arg].ravel().at[k].add(1j * h)).reshape(g.shape)
-            ref = float(jnp.imag(run(*args))) / h
-            np.testing.assert_allclose(np.ravel(g)[k], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+    _check_complex_step(grads, run, base)
 
 
 # ---------------------------------------------------------------- closed loop: compliant ground contact
@@ -367,13 +361,7 @@ def test_contact_gradients_match_complex_step_of_an_independent_rollout():
     base = [jnp.asarray(a, complex) for a in (p, k, dt)]
     np.testing.assert_allclose(loss(p, k, dt), jnp.real(run(*base)), rtol=1e-12)
     grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(p, k, dt)
-    h = 1e-30
-    for arg, g in enumerate(grads):
-        for j in range(g.size):
-            args = list(base)
-            args[arg] = (base[arg].ravel().at[j].add(1j * h)).reshape(g.shape)
-            ref = float(jnp.imag(run(*args))) / h
-            np.testing.assert_allclose(np.ravel(g)[j], ref, rtol=1e-9, atol=1e-11 * float(jnp.abs(g).max()))
+    _check_complex_step(grads, run, base)
     assert float(jnp.abs(grads[1])) > 0  # the contact acts
 
 
@@ -422,10 +410,4 @@ def test_loop_gradients_match_complex_step_of_an_independent_rollout():
     base = [jnp.asarray(a, complex) for a in (p, x0, u)]
     np.testing.assert_allclose(loss(p, x0, u), jnp.real(run(*base)), rtol=1e-11)
     grads = jax.jit(jax.grad(loss, argnums=(0, 1, 2)))(p, x0, u)
-    h, pick = 1e-30, np.random.default_rng(2)
-    for arg, grad in enumerate(grads):
-        for j in pick.choice(grad.size, size=min(grad.size, 6), replace=False):
-            args = list(base)
-            args[arg] = (base[arg].ravel().at[j].add(1j * h)).reshape(grad.shape)
-            ref = float(jnp.imag(run(*args))) / h
-            np.testing.assert_allclose(np.ravel(grad)[j], ref, rtol=1e-8, atol=1e-10 * float(jnp.abs(grad).max()))
+    _check_complex_step(grads, run, base, sample=6, seed=2, rtol=1e-8, atol=1e-10)
