@@ -160,19 +160,23 @@ class QuantitySet:
         an unknown name raises :class:`RequestError` naming the closest valid ones; values may carry batch
         axes), or an array ``(..., n_params)``. ``dtype``: the result's (default: float64 with x64 enabled).
         """
-        return param_array(self.layout, self._packed(params), dtype)
+        return param_array(self.layout, self.packed_params(params), dtype)
 
-    def _packed(self, params, where: str = "params"):
-        """``params`` with concrete values packed on the host by ``self._host`` (:class:`HostParameters`):
-        a float64 NumPy array (``None`` gives the read-only default vector), or ``params`` unchanged where
-        they hold JAX arrays or tracers (:func:`param_array` converts those inside a jitted function)."""
+    def packed_params(self, params, where: str = "params"):
+        """``params`` ready to pass to a jitted function, converted there by :func:`param_array`.
+
+        Concrete values are packed on the host by the parameters' one rule (:class:`HostParameters`) and
+        checked (see ``checks``): a float64 NumPy array ``(..., n_params)`` (``None`` gives the read-only
+        default vector), a mapping's as a JAX array kept on the device (:meth:`HostParameters.on_device`).
+        JAX arrays, tracers and mappings that hold them are returned unchanged.
+        """
         host = self._host.pack(params, where)
         if host is None:
             return params
         if self.checks and host is not self._host.defaults and host is not self._last_checked:
             self._check_params(host, where)
             self._last_checked = host
-        return host
+        return self._host.on_device(host) if isinstance(params, Mapping) else host
 
     def _check_params(self, p: np.ndarray, where: str) -> None:
         """:class:`InputError` for a NaN or inf parameter (named) or a physically impossible body."""

@@ -265,7 +265,7 @@ def constrained_forward_dynamics(dyn, q, qd, tau, params=None, *, stabilization:
     """
     require_constraints(dyn, "constrained_forward_dynamics")
     stabilization, regularization = options(stabilization, regularization)
-    return _forward(dyn, q, qd, tau, dyn._packed(params), stabilization, regularization)
+    return _forward(dyn, q, qd, tau, dyn.packed_params(params), stabilization, regularization)
 
 
 def _actuated(dyn, actuated) -> tuple[int, ...]:
@@ -324,4 +324,4 @@ def constrained_inverse_dynamics(dyn, q, qd, qdd, actuated, params=None) -> tupl
         ``(tau_a (..., k), lambda (..., m))``, ``tau_a`` in the order of ``actuated``.
     """
     require_constraints(dyn, "constrained_inverse_dynamics")
-    return _inverse(dyn, q, qd, qdd, dyn._packed(params), _actuated(dyn, actuated))
+    return _inverse(dyn, q, qd, qdd, dyn.packed_params(params), _actuated(dyn, actuated))

@@ -125,7 +125,6 @@ class Dynamics(QuantitySet):
                 self._plain[name] = _traced_once(rule(self._plain[name]), name)
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
-        self._on_device: tuple = (None, None)  # (a dict's packed vector, its copy on the device)
         # the native libraries: each handler's library, built on first use
         self._native_build: dict[str, NativeBuild] = {}
         for lib in native:
@@ -280,20 +279,6 @@ class Dynamics(QuantitySet):
             raise RequestError(f"{name} has a scalar value: it has no entries")
         return self._entries[name]
 
-    def _packed(self, params, where: str = "params"):
-        """As :meth:`QuantitySet._packed`, and a dict's vector is kept on the device too: passed to a
-        jitted function, a host array costs a transfer per call, a device array does not."""
-        packed = super()._packed(params, where)
-        if not (isinstance(params, Mapping) and isinstance(packed, np.ndarray)):
-            return packed
-        vector, on_device = self._on_device
-        if vector is not packed:  # a new dict (its packed vector is read-only and new: identity tells)
-            on_device = jnp.asarray(packed)
-            if isinstance(on_device, jax.core.Tracer):  # inside a caller's trace: a constant of it
-                return on_device
-            self._on_device = (packed, on_device)
-        return on_device
-
     # ------------------------------------------------------------------ the functions
     def _call(self, name: str, *args, **kwargs):
         """A call of the quantity ``name``, its function made (:meth:`_make`) on the first."""
@@ -304,7 +289,7 @@ class Dynamics(QuantitySet):
 
     def _evaluate(self, name: str) -> Callable:
         """``call(*state, params, pair)``: the quantity on one state or a batch, with ``params`` already
-        packed (:meth:`_packed`) and converted here, inside the jitted function."""
+        packed (:meth:`packed_params`) and converted here, inside the jitted function."""
         args, shape = self.signature(name)
         raw, plain = self._raw[name], self._plain[name]
         native = self.native_target(name)
@@ -381,7 +366,7 @@ class Dynamics(QuantitySet):
                 check_inputs("debug", name, [*zip(args, state), ("params", params), ("wrench", wrench)],
                              self.parameters)
             if params is not None:  # None stays: the defaults become constants of the compiled program
-                params = self._packed(params)
+                params = self.packed_params(params)
             if out is not None:
                 _check_donated(name, out, (*state, params))
             result = compiled(*state, params=params, out=out)

@@ -134,7 +134,7 @@ def forward_dynamics(dyn, q, qd, tau, params=None, *, wrench=None) -> jax.Array:
     if wrench is not None and "external_torques" not in dyn.quantities:
         raise RequestError("forward_dynamics with a wrench needs the quantity external_torques; lower it too")
     check_inputs(dyn.checks, "forward_dynamics", [("q", q), ("qd", qd), ("tau", tau), ("wrench", wrench)])
-    params = dyn._packed(params)
+    params = dyn.packed_params(params)
     # Called from Python without a wrench: the native kernel, where there is one. Inside a caller's trace
     # (a rollout, a user's loop) the JAX form stays, which XLA fuses with the rest of the program.
     native = None if wrench is not None or not top_level((q, qd, tau, params)) else dyn.native_target("forward_dynamics")

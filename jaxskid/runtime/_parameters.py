@@ -117,6 +117,7 @@ class HostParameters:
             self.defaults = np.array(layout.values(None), dtype=np.float64)
             self.defaults.flags.writeable = False
         self._last: tuple[dict, np.ndarray | None] = ({}, None)
+        self._device: tuple[np.ndarray | None, jax.Array | None] = (None, None)  # a vector and its device copy
 
     def pack(self, params=None, where: str = "params") -> np.ndarray | None:
         """``params`` as a float64 array ``(..., n_params)``, or ``None`` where they hold JAX values.
@@ -140,6 +141,19 @@ class HostParameters:
             return None  # e.g. a list of tracers: param_array stacks it
         _check_vector(p.shape, self.layout, where)
         return p
+
+    def on_device(self, vector: np.ndarray) -> jax.Array:
+        """A packed mapping's ``vector`` as a JAX array, the copy of the last one kept: passed to a jitted
+        function, a host array costs a transfer per call, a device array does not. A new mapping packs to a
+        new read-only vector (:meth:`pack`), so identity tells whether the copy is current. Inside a caller's
+        trace the array is a constant of that trace and is not kept."""
+        last, array = self._device
+        if last is not vector:
+            array = jnp.asarray(vector)
+            if isinstance(array, jax.core.Tracer):
+                return array
+            self._device = (vector, array)
+        return array
 
     def _pack_mapping(self, params: Mapping, where: str) -> np.ndarray | None:
         last, vector = self._last
