@@ -104,7 +104,7 @@ def checks(out) -> None:
 
 
 def rollouts(out, budget: float, batches) -> None:
-    from jaxskid.apps import _simulate
+    from jaxskid.apps.simulation import _rollout
 
     dyn = jaxskid.lower(jaxskid.load(UR5), ["forward_dynamics", "gravity_torques"])
     n, p0 = dyn.n_dof, dyn.param_vector()
@@ -133,10 +133,10 @@ def rollouts(out, budget: float, batches) -> None:
                 if left(budget) < 90:
                     emit(out, section=section, batch=batch, mode=mode, skipped="budget")
                     continue
-                steps = (_simulate.feedback_rk4, _simulate.held_torque_rk4)
+                steps = (_rollout.feedback_rk4, _rollout.held_torque_rk4)
                 jax.clear_caches()  # the rollout's jit would reuse the other mode's program
                 if mode == "stage by stage":
-                    _simulate.feedback_rk4 = _simulate.held_torque_rk4 = lambda dyn, batched: None
+                    _rollout.feedback_rk4 = _rollout.held_torque_rk4 = lambda dyn, batched: None
                 try:
                     loss_first, loss_time = timed(jax.jit(loss), p0)
                     grad = jax.jit(jax.grad(loss))
@@ -152,7 +152,7 @@ def rollouts(out, budget: float, batches) -> None:
                 except Exception as exc:
                     emit(out, section=section, batch=batch, mode=mode, error=f"{type(exc).__name__}: {str(exc)[:300]}")
                 finally:
-                    _simulate.feedback_rk4, _simulate.held_torque_rk4 = steps
+                    _rollout.feedback_rk4, _rollout.held_torque_rk4 = steps
 
 
 def main() -> None:

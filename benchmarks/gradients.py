@@ -160,7 +160,7 @@ def _scene(name: str, batch: int):
         return loss, dyn.param_vector(), n, len(dyn.parameters), steps, 1
     if name == "solo12_contact":
         robot = jaxskid.load(erd / "solo_description/robots/solo12.urdf", floating_base=True)
-        from jaxskid.apps._contact import NEEDED
+        from jaxskid.apps.simulation._contact import NEEDED
 
         dyn = jaxskid.lower(robot, ["forward_dynamics", *NEEDED])
         stand = jnp.asarray([0, 0.8, -1.6, 0, 0.8, -1.6, 0, -0.8, 1.6, 0, -0.8, 1.6])

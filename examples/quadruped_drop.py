@@ -30,7 +30,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
-from jaxskid.apps._contact import NEEDED  # noqa: E402
+from jaxskid.apps.simulation._contact import NEEDED  # noqa: E402
 
 STAND = np.array([0, 0.8, -1.6, 0, 0.8, -1.6, 0, -0.8, 1.6, 0, -0.8, 1.6])  # hip, thigh, knee per leg [rad]
 KP, KD = 20.0, 0.5  # joint PD [N m/rad], [N m s/rad]

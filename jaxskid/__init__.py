@@ -36,25 +36,24 @@ if TYPE_CHECKING:  # the same names for type checkers and editors (tests/test_la
     from .description._urdf import read_urdf
     from .runtime._forward import forward_dynamics, mass_matrix_condition
     from .runtime._constrained import Baumgarte, constrained_forward_dynamics, constrained_inverse_dynamics
-    from .apps._field import Controller, vector_field
-    from .apps._integrators import RK4, SemiImplicitEuler
-    from .apps._saving import Checkpoint, SaveAt
-    from .apps._simulate import Trajectory, rollout
-    from .apps._field import HeldInput
-    from .apps._motor import DCMotors
-    from .apps._identification import (
-        Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, LogCholesky,
-        PhysicallyConsistent, Standard, WeightedLeastSquares, base_parameters, fit, identify, physically_consistent,
-        quantity_loss, trajectory_loss,
+    from .apps.simulation._field import Controller, vector_field
+    from .apps.simulation._integrators import RK4, SemiImplicitEuler
+    from .apps.simulation._saving import Checkpoint, SaveAt
+    from .apps.simulation._rollout import Trajectory, rollout
+    from .apps.simulation._field import HeldInput
+    from .apps.simulation._motor import DCMotors
+    from .apps.identification._identification import (
+        Adam, BaseParameters, Estimate, FitResult, GradientDescent, GradientFit, LeastSquares, PhysicallyConsistent,
+        WeightedLeastSquares, base_parameters, fit, identify, quantity_loss, trajectory_loss,
     )
-    from .apps._energy_id import EnergyBalance, energy_balance, momentum_balance
-    from .apps._control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
-    from .apps._contact import GroundContact
-    from .apps._health import RolloutWarning, StepStability, step_stability
-    from .apps._excitation import ExcitationResult, FourierTrajectory, design_excitation
-    from .apps._parameterizations import nearest_consistent
-    from .apps._signals import estimate_derivatives, lowpass, parallel_filter, quantize
-    from .apps._validation import Validation, plot_validation, validate
+    from .apps.identification._energy_id import EnergyBalance, energy_balance, momentum_balance
+    from .apps.control._laws import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
+    from .apps.simulation._contact import GroundContact
+    from .apps.simulation._health import RolloutWarning, StepStability, step_stability
+    from .apps.identification._excitation import ExcitationResult, FourierTrajectory, design_excitation
+    from .apps.identification._parameterizations import LogCholesky, Standard, nearest_consistent, physically_consistent
+    from .apps.identification._signals import estimate_derivatives, lowpass, parallel_filter, quantize
+    from .apps.identification._validation import Validation, plot_validation, validate
     from .description._yaml_schema import DescriptionExtras, parse_description, read_description, read_extras
     from .description._yaml_writer import robot_to_dict, write_description
     from .description._dh import DH, dh_robot
@@ -80,22 +79,22 @@ _EXPORTS = {  # module -> the public names it defines (a submodule's own name: t
     ".description._urdf": "read_urdf",
     ".runtime._forward": "forward_dynamics mass_matrix_condition",
     ".runtime._constrained": "Baumgarte constrained_forward_dynamics constrained_inverse_dynamics",
-    ".apps._field": "Controller vector_field HeldInput",
-    ".apps._integrators": "RK4 SemiImplicitEuler",
-    ".apps._saving": "Checkpoint SaveAt",
-    ".apps._simulate": "Trajectory rollout",
-    ".apps._motor": "DCMotors",
-    ".apps._identification": "Adam BaseParameters Estimate FitResult GradientDescent GradientFit LeastSquares "
-                              "LogCholesky PhysicallyConsistent Standard WeightedLeastSquares base_parameters fit "
-                              "identify physically_consistent quantity_loss trajectory_loss",
-    ".apps._energy_id": "EnergyBalance energy_balance momentum_balance",
-    ".apps._control": "ComputedTorque PDGravity SlotineLi mixed_regressor reference_derivatives",
-    ".apps._contact": "GroundContact",
-    ".apps._health": "RolloutWarning StepStability step_stability",
-    ".apps._excitation": "ExcitationResult FourierTrajectory design_excitation",
-    ".apps._parameterizations": "nearest_consistent",
-    ".apps._signals": "estimate_derivatives lowpass parallel_filter quantize",
-    ".apps._validation": "Validation plot_validation validate",
+    ".apps.simulation._field": "Controller vector_field HeldInput",
+    ".apps.simulation._integrators": "RK4 SemiImplicitEuler",
+    ".apps.simulation._saving": "Checkpoint SaveAt",
+    ".apps.simulation._rollout": "Trajectory rollout",
+    ".apps.simulation._motor": "DCMotors",
+    ".apps.identification._identification": "Adam BaseParameters Estimate FitResult GradientDescent GradientFit "
+                                             "LeastSquares PhysicallyConsistent WeightedLeastSquares base_parameters "
+                                             "fit identify quantity_loss trajectory_loss",
+    ".apps.identification._energy_id": "EnergyBalance energy_balance momentum_balance",
+    ".apps.control._laws": "ComputedTorque PDGravity SlotineLi mixed_regressor reference_derivatives",
+    ".apps.simulation._contact": "GroundContact",
+    ".apps.simulation._health": "RolloutWarning StepStability step_stability",
+    ".apps.identification._excitation": "ExcitationResult FourierTrajectory design_excitation",
+    ".apps.identification._parameterizations": "LogCholesky Standard nearest_consistent physically_consistent",
+    ".apps.identification._signals": "estimate_derivatives lowpass parallel_filter quantize",
+    ".apps.identification._validation": "Validation plot_validation validate",
     ".description._yaml_schema": "DescriptionExtras parse_description read_description read_extras",
     ".description._yaml_writer": "robot_to_dict write_description",
     ".description._dh": "DH dh_robot",

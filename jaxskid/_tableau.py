@@ -1,6 +1,6 @@
 """The Butcher tableau of the classical fourth-order Runge-Kutta method, written once.
 
-:class:`jaxskid.RK4` (:mod:`jaxskid.apps._integrators`) steps with it, and the runtime's one-call RK4 steps
+:class:`jaxskid.RK4` (:mod:`jaxskid.apps.simulation._integrators`) steps with it, and the runtime's one-call RK4 steps
 (:mod:`jaxskid.runtime._rk4`, and the native recursion :mod:`jaxskid.lowering._ffi_rk4` prints it into) run
 the same stages backwards. Both sit below the applications, so the tableau lives here, at the bottom of the
 layers.

@@ -12,7 +12,7 @@ import pytest
 from helpers import ERD
 
 import jaxskid
-from jaxskid.apps._contact import NEEDED
+from jaxskid.apps.simulation._contact import NEEDED
 
 SOLO12 = ERD / "solo_description/robots/solo12.urdf"
 GO1 = ERD / "go1_description/urdf/go1.urdf"
@@ -110,7 +110,7 @@ def test_a_base_with_collision_points_lands_on_them(solo_with_base):
     with warnings.catch_warnings():
         warnings.simplefilter("error", jaxskid.RolloutWarning)
         traj = jaxskid.rollout(dyn, x0, landing, 1e-3, 600, health=False)
-        assert not jaxskid.apps._health.warn_if_below_ground(landing, traj.x[-1])
+        assert not jaxskid.apps.simulation._health.warn_if_below_ground(landing, traj.x[-1])
     weight = 9.81 * pin.computeTotalMass(pin.buildModelFromUrdf(str(SOLO12), pin.JointModelFreeFlyer()))
     sag = weight / (4 * landing.k)  # the weight on the four corners of the face, each a spring k
     z = np.asarray(traj.x[:, 2])

@@ -19,7 +19,7 @@ K, C, MU, SLIP, HEIGHT = 5e3, 50.0, 0.8, 5e-2, 0.02
 @pytest.fixture(scope="module")
 def solo():
     robot = jaxskid.load(URDFS["solo12"], floating_base=True)
-    dyn = jaxskid.lower(robot, ["forward_dynamics", *jaxskid.apps._contact.NEEDED])
+    dyn = jaxskid.lower(robot, ["forward_dynamics", *jaxskid.apps.simulation._contact.NEEDED])
     model = pin.buildModelFromUrdf(str(URDFS["solo12"]), pin.JointModelFreeFlyer())
     return robot, dyn, model
 
@@ -29,7 +29,7 @@ def to_pin(v):
 
 
 def reference_forces(model, q, v, radius=0.0):
-    """The contact law of jaxskid.apps._contact on Pinocchio's kinematics: (forces (4, 3), generalized force in
+    """The contact law of jaxskid.apps.simulation._contact on Pinocchio's kinematics: (forces (4, 3), generalized force in
     Pinocchio's velocity order). With a ``radius``, each foot is a sphere around its frame, touching the ground at
     the material point ``radius`` below its centre, whose velocity and Jacobian are those of that point."""
     data = model.createData()

@@ -18,7 +18,7 @@ import pytest
 
 import jaxskid
 from jaxskid import reference_derivatives
-from jaxskid.apps._identification import random_states
+from jaxskid.apps.identification._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
 

@@ -223,7 +223,7 @@ def test_energy_balance_has_the_torque_models_base_parameters(simulated):
     # y_K + y_U at random states: the differences span 9 fewer directions than the torque model (fv, fc, fo of 3
     # drives enter only through the friction power), the rows themselves one more (the waist turns about the
     # vertical through the origin: its first moment's U column is the constant g)
-    q1, qd1, _ = jaxskid.apps._identification.random_states(3, 100, 10)
+    q1, qd1, _ = jaxskid.apps.identification._identification.random_states(3, 100, 10)
     single = np.asarray(dyn.kinetic_energy_regressor(q1, qd1, params) + dyn.potential_energy_regressor(q1, params))
     differences = jaxskid.base_parameters(single[1:] - single[:-1]).n_base
     assert differences == torque.n_base - 9

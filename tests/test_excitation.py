@@ -19,7 +19,7 @@ from helpers import FINGERS, PANDA, ROBOTS_DIR, URDFS
 import jaxskid
 from jaxskid import FourierTrajectory, JointLimits, ModelError, RequestError, ShapeError
 from jaxskid._api import module_key
-from jaxskid.apps._excitation import _stacked_regressor
+from jaxskid.apps.identification._excitation import _stacked_regressor
 
 
 def _random_fourier(rng, n, harmonics, period, scale=1.0) -> FourierTrajectory:

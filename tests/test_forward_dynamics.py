@@ -16,7 +16,7 @@ import pytest
 
 import jaxskid
 from helpers import FINGERS, PANDA, REPO, load, lowered, pinocchio_urdf_model
-from jaxskid.apps._identification import random_states
+from jaxskid.apps.identification._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
 

@@ -191,7 +191,7 @@ def test_an_unstable_step_warns_and_the_step_it_names_settles():
     spec = importlib.util.spec_from_file_location("quadruped_drop", ROBOTS_DIR.parent / "examples/quadruped_drop.py")
     example = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(example)
-    from jaxskid.apps._contact import NEEDED
+    from jaxskid.apps.simulation._contact import NEEDED
 
     robot = jaxskid.load(example.solo12_urdf(), floating_base=True)
     dyn = jaxskid.lower(robot, ["forward_dynamics", *NEEDED])

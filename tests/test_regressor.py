@@ -17,7 +17,7 @@ import pytest
 import scipy.stats
 
 import jaxskid
-from jaxskid.apps._identification import random_states
+from jaxskid.apps.identification._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
 from helpers import FINGERS, PANDA, URDFS as ERD_URDFS, pinocchio_urdf_model

@@ -16,7 +16,7 @@ import pytest
 from helpers import load
 
 import jaxskid
-from jaxskid.apps._integrators import RK4
+from jaxskid.apps.simulation._integrators import RK4
 from jaxskid.runtime._forward import accelerations
 from jaxskid.runtime._rk4 import feedback_rk4, held_torque_rk4
 

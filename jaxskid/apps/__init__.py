@@ -1,46 +1,62 @@
-"""Applications of the lowered quantities: rollouts (integrators, controllers under ``lax.scan``, the states
-saved and checkpointed, diffrax solvers), parameter identification (base parameters, least squares,
-physically consistent fits with optax, excitation trajectories), control laws (computed torque, PD + gravity, Slotine–Li) and the
-numeric self-check of a lowered model."""
+"""Applications of the lowered quantities, one subpackage per purpose:
 
-from ._contact import GroundContact
-from ._control import (
-    ComputedTorque,
-    PDGravity,
-    SlotineLi,
-    mixed_regressor,
-    reference_derivatives,
-)
-from ._energy_id import EnergyBalance, energy_balance, momentum_balance
-from ._excitation import ExcitationResult, FourierTrajectory, design_excitation
-from ._field import Controller, HeldInput, vector_field
-from ._identification import (
+* :mod:`~jaxskid.apps.simulation`: rollouts (integrators, controllers under ``lax.scan``, the states saved and
+  checkpointed, diffrax solvers, ground contact, DC motors);
+* :mod:`~jaxskid.apps.identification`: parameter identification (base parameters, least squares, physically
+  consistent fits with optax, excitation trajectories, signal processing, validation);
+* :mod:`~jaxskid.apps.control`: control laws (computed torque, PD + gravity, Slotine–Li);
+
+and the numeric self-check of a lowered model (``_selfcheck``). Identification and control build on the
+simulation's public names and not on each other (the import-linter contracts in ``pyproject.toml``)."""
+
+from ._selfcheck import self_check
+from .control import ComputedTorque, PDGravity, SlotineLi, mixed_regressor, reference_derivatives
+from .identification import (
     Adam,
     BaseParameters,
+    EnergyBalance,
     Estimate,
+    ExcitationResult,
     FitResult,
+    FourierTrajectory,
     GradientDescent,
     GradientFit,
     LeastSquares,
     LogCholesky,
     PhysicallyConsistent,
     Standard,
+    Validation,
     WeightedLeastSquares,
     base_parameters,
+    design_excitation,
+    energy_balance,
+    estimate_derivatives,
     fit,
     identify,
+    lowpass,
+    momentum_balance,
+    nearest_consistent,
+    parallel_filter,
     physically_consistent,
+    plot_validation,
     quantity_loss,
+    quantize,
     trajectory_loss,
+    validate,
 )
-from ._integrators import RK4, SemiImplicitEuler
-from ._motor import DCMotors
-from ._parameterizations import nearest_consistent
-from ._saving import Checkpoint, SaveAt
-from ._selfcheck import self_check
-from ._signals import estimate_derivatives, lowpass, parallel_filter, quantize
-from ._simulate import Trajectory, rollout
-from ._validation import Validation, plot_validation, validate
+from .simulation import (
+    RK4,
+    Checkpoint,
+    Controller,
+    DCMotors,
+    GroundContact,
+    HeldInput,
+    SaveAt,
+    SemiImplicitEuler,
+    Trajectory,
+    rollout,
+    vector_field,
+)
 
 __all__ = [
     "RK4", "Adam", "BaseParameters", "Checkpoint", "ComputedTorque", "Controller", "GroundContact", "DCMotors", "Estimate",

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import ShapeError
+from ..._errors import ShapeError
 
 
 @dataclass(frozen=True)

@@ -13,9 +13,9 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from .._errors import RequestError, ShapeError
-from ..runtime._dynamics import Dynamics
-from ._field import Controller
+from ..._errors import RequestError, ShapeError
+from ...runtime._dynamics import Dynamics
+from ..simulation import Controller
 
 
 def reference_derivatives(reference: Callable, t) -> tuple[jax.Array, jax.Array, jax.Array]:

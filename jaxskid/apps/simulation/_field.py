@@ -24,14 +24,14 @@ from typing import Any, NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._errors import RequestError, ShapeError
-from ..runtime._batching import float_arrays
-from ..runtime._dynamics import Dynamics
-from ..runtime._constrained import (
+from ..._errors import RequestError, ShapeError
+from ...runtime._batching import float_arrays
+from ...runtime._dynamics import Dynamics
+from ...runtime._constrained import (
     CONSTRAINT_QUANTITIES, Baumgarte, constrained_accelerations, options, require_constraints,
 )
-from ..runtime._forward import accelerations, require_solver
-from ..runtime._free_flyer import configuration_rate
+from ...runtime._forward import accelerations, require_solver
+from ...runtime._free_flyer import configuration_rate
 
 
 class Controller:

@@ -3,7 +3,7 @@
 ``rollout(..., integrator=solver, stepsize_controller=controller)`` with a ``diffrax.AbstractSolver``:
 
 * no controller (or ``diffrax.ConstantStepSize()``): fixed steps of ``dt``. The solver's step
-  (``solver.step``) runs inside jaxskid's own loops (:mod:`jaxskid.apps._loop`), exactly like :class:`RK4`, so
+  (``solver.step``) runs inside jaxskid's own loops (:mod:`jaxskid.apps.simulation._loop`), exactly like :class:`RK4`, so
   saving, checkpointing, batching and per-rollout steps behave the same. Each step starts afresh
   (``made_jump=True``: an FSAL solver re-evaluates its first stage, since the torque may jump there). An
   implicit solver then needs its root finder's tolerances, e.g.
@@ -29,7 +29,7 @@ import diffrax
 import jax
 import jax.numpy as jnp
 
-from .._errors import RequestError
+from ..._errors import RequestError
 from ._field import held
 from ._integrators import fixed_step
 from ._saving import Checkpoint, SaveAt
@@ -38,7 +38,7 @@ from ._saving import Checkpoint, SaveAt
 @dataclass(frozen=True)
 class DiffraxStep:
     """A diffrax solver as a fixed-step integrator: ``step(f, t, y, dt) -> (y1, aux)`` (see
-    :mod:`jaxskid.apps._integrators`), ``aux`` from ``f`` at ``(t, y)``."""
+    :mod:`jaxskid.apps.simulation._integrators`), ``aux`` from ``f`` at ``(t, y)``."""
 
     solver: diffrax.AbstractSolver
 
@@ -109,7 +109,7 @@ def adaptive_rollout(
     stepper: Adaptive, f: Callable, observe: Callable, y0, u, dt, steps: int, saveat: SaveAt, index,
     checkpoint: Checkpoint | None, tau0,
 ):
-    """One adaptive diffrax solve of ``f(t, y, u_k) -> (dy/dt, tau)`` (:func:`~jaxskid.apps._field.dynamics_field`):
+    """One adaptive diffrax solve of ``f(t, y, u_k) -> (dy/dt, tau)`` (:func:`~jaxskid.apps.simulation._field.dynamics_field`):
     the saved ``observe(y)`` ``(n_saved, ...)`` and torques ``(n_saved - 1, n)``, as for the fixed-step loops.
 
     ``u``: torques ``(steps, n)`` or None; ``index``: the step numbers of ``saveat.ts`` (else None).

@@ -3,7 +3,7 @@
 An integrator takes one step of ``dy/dt = f(t, y)`` with ``y = (q, qd, z)`` (positions, velocities and a
 controller's state) through ``step(f, t, y, dt) -> (y1, aux)``, where ``f(t, y) -> (dy/dt, aux)`` and the
 returned ``aux`` (the applied torque) is that of the first evaluation, at ``(t, y)``. Any diffrax solver
-serves too (:mod:`jaxskid.apps._diffrax`); why these two are kept is said at each, with measured figures.
+serves too (:mod:`jaxskid.apps.simulation._diffrax`); why these two are kept is said at each, with measured figures.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import ClassVar
 import jax
 import jax.numpy as jnp
 
-from .._errors import RequestError
-from .._tableau import RK4_TABLEAU, ExplicitTableau
+from ..._errors import RequestError
+from ..._tableau import RK4_TABLEAU, ExplicitTableau
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class SemiImplicitEuler:
         q, qd, z = y
         qd1 = qd + dt * qdd
         z1 = jax.tree.map(lambda a, b: a + dt * b, z, zdot)
-        rate = getattr(f, "rate", None)  # dq/dt at a velocity: a floating base's (jaxskid.apps._field)
+        rate = getattr(f, "rate", None)  # dq/dt at a velocity: a floating base's (jaxskid.apps.simulation._field)
         return (q + dt * (qd1 if rate is None else rate(q, qd1)), qd1, z1), aux
 
 

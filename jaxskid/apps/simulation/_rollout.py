@@ -1,9 +1,9 @@
 """Rollouts on top of a lowered :class:`~jaxskid.Dynamics`.
 
-A rollout integrates ``y = (q, qd, z)`` (:mod:`jaxskid.apps._field`) with a fixed-step integrator
-(:mod:`jaxskid.apps._integrators`, or a diffrax solver's step) in ``lax.scan`` loops that stack only the
-saved states (:mod:`jaxskid.apps._loop`, :class:`SaveAt`), or with an adaptive diffrax solve
-(:mod:`jaxskid.apps._diffrax`). Batches are ``vmap``-ed and, when several devices are given, split across
+A rollout integrates ``y = (q, qd, z)`` (:mod:`jaxskid.apps.simulation._field`) with a fixed-step integrator
+(:mod:`jaxskid.apps.simulation._integrators`, or a diffrax solver's step) in ``lax.scan`` loops that stack only the
+saved states (:mod:`jaxskid.apps.simulation._loop`, :class:`SaveAt`), or with an adaptive diffrax solve
+(:mod:`jaxskid.apps.simulation._diffrax`). Batches are ``vmap``-ed and, when several devices are given, split across
 them with ``shard_map``; all of it is one compiled call.
 
 A robot with constraints whose quantities are lowered (:data:`jaxskid.runtime._constrained.CONSTRAINT_QUANTITIES`,
@@ -11,7 +11,7 @@ among the default quantities of such a robot) moves held by them (:func:`jaxskid
 with :class:`~jaxskid.Baumgarte` stabilisation by default.
 
 State convention: ``x = (q, qd)`` concatenated, shape ``(2 n,)``; with a floating base ``(nq + nv,)``, the
-configuration ``q = (p, quat, q_j)`` and the velocity ``(omega, v, qd_j)`` (:mod:`jaxskid.apps._field`), the
+configuration ``q = (p, quat, q_j)`` and the velocity ``(omega, v, qd_j)`` (:mod:`jaxskid.apps.simulation._field`), the
 quaternion renormalised after every fixed step.
 """
 
@@ -27,16 +27,16 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
 
-from .._errors import RequestError
-from ..runtime._batching import batch_shape, float_arrays
-from ..runtime._dynamics import Dynamics
-from ..runtime._forward import require_solver
-from ..runtime._implicit import AUTODIFF
-from ..runtime._checks import check_inputs
-from ..runtime._jit import forward_mode, jit, top_level, traced
-from ..runtime._free_flyer import normalize
-from ..runtime._rk4 import feedback_rk4, held_torque_rk4, hoist
-from ..runtime._constrained import Baumgarte
+from ..._errors import RequestError
+from ...runtime._batching import batch_shape, float_arrays
+from ...runtime._dynamics import Dynamics
+from ...runtime._forward import require_solver
+from ...runtime._implicit import AUTODIFF
+from ...runtime._checks import check_inputs
+from ...runtime._jit import forward_mode, jit, top_level, traced
+from ...runtime._free_flyer import normalize
+from ...runtime._rk4 import feedback_rk4, held_torque_rk4, hoist
+from ...runtime._constrained import Baumgarte
 from ._field import as_controls, constraint_forces, dynamics_field, with_input
 from ._integrators import RK4, classical_rk4, fixed_step
 from ._loop import saved_loop
@@ -208,7 +208,7 @@ def rollout(
         steps: the number of steps (a Python int); the rollout ends at ``steps * dt``.
         integrator: :class:`RK4`, :class:`SemiImplicitEuler` (any object with ``step(f, t, y, dt)``), or a
             diffrax solver (``diffrax.Tsit5()``, ``diffrax.Kvaerno5()``, ...), which takes fixed steps of ``dt``
-            unless ``stepsize_controller`` is adaptive; see :mod:`jaxskid.apps._diffrax`.
+            unless ``stepsize_controller`` is adaptive; see :mod:`jaxskid.apps.simulation._diffrax`.
         params: as for :func:`forward_dynamics`; ``(..., n_params)`` or a dict of batched values pairs one
             parameter set with each rollout of a batch (batch axes broadcast against those of ``x0``).
         saveat: which states are returned (:class:`SaveAt`); ``None`` is ``SaveAt()``, every state. The
@@ -228,7 +228,7 @@ def rollout(
             ``jax.devices()``.
         stabilization, regularization: a constrained robot's (module docstring; :func:`constrained_forward_dynamics`).
         health: from Python, warn (:class:`RolloutWarning`) where RK4's step does not integrate the closed loop
-            at the final states stably, naming the rollouts and a step that would (:mod:`jaxskid.apps._health`),
+            at the final states stably, naming the rollouts and a step that would (:mod:`jaxskid.apps.simulation._health`),
             and where a floating base ends below the ground with no contact frame on it; ``None``: with contact.
 
     Returns:
@@ -269,9 +269,9 @@ def _batch(dyn, x0, p, u, dt, steps: int) -> tuple:
 
 
 def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> Trajectory:
-    """``traj``, after :func:`~jaxskid.apps._health.warn_if_unstable` on its final states where ``health`` asks
+    """``traj``, after :func:`~jaxskid.apps.simulation._health.warn_if_unstable` on its final states where ``health`` asks
     for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set, and
-    :func:`~jaxskid.apps._health.warn_if_below_ground` in a scene with ground contact."""
+    :func:`~jaxskid.apps.simulation._health.warn_if_below_ground` in a scene with ground contact."""
     from ._contact import GroundContact
     from ._health import warn_if_below_ground, warn_if_unstable
 

@@ -1,6 +1,6 @@
 """Compliant ground contact for rollouts: feet that land, slide and stick on a plane.
 
-:class:`GroundContact` is a :class:`~jaxskid.apps._field.Controller` that adds the generalized forces of
+:class:`GroundContact` is a :class:`~jaxskid.apps.simulation._field.Controller` that adds the generalized forces of
 point contacts between chosen end-effector frames and the ground plane ``z = height`` to those of another
 controller (or of none). For a contact point at world position ``p`` with world velocity ``pd = J_v(q) qd``
 (the linear rows of its hybrid Jacobian) and penetration ``d = height - p_z``:
@@ -20,7 +20,7 @@ adds the moment ``(-r e_z) x f``. With ``r = 0`` this is the point contact above
 
 The contact frames are :attr:`GroundContact.frames`, and its ``repr`` names them: a part of the robot with no
 contact frame passes through the ground. :func:`jaxskid.rollout` warns when a floating base ends below the ground
-with none of them on it (:func:`jaxskid.apps._health.warn_if_below_ground`); :func:`jaxskid.collision_points`
+with none of them on it (:func:`jaxskid.apps.simulation._health.warn_if_below_ground`); :func:`jaxskid.collision_points`
 gives the points of a URDF's collision geometry, the base's included.
 
 It is smooth enough for ``jax.grad`` almost everywhere and needs no event detection, so a batch of rollouts
@@ -43,9 +43,9 @@ from collections.abc import Mapping, Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RequestError, unknown_names
-from ..runtime._dynamics import Dynamics
-from ..runtime._jit import traced
+from ..._errors import RequestError, unknown_names
+from ...runtime._dynamics import Dynamics
+from ...runtime._jit import traced
 from ._field import Controller, as_controls
 
 

@@ -13,8 +13,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._errors import RequestError, ShapeError
-from ..runtime._dynamics import Dynamics
+from ..._errors import RequestError, ShapeError
+from ...runtime._dynamics import Dynamics
 
 
 class Validation(NamedTuple):

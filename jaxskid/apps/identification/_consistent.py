@@ -30,8 +30,8 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.linalg
 
-from .._errors import IdentificationError
-from ..runtime._jit import jit
+from ..._errors import IdentificationError
+from ...runtime._jit import jit
 from ._parameterizations import (
     LogCholesky, _split_drives, _standard_to_pseudo, drive_lower_bounds, nearest_consistent,
 )

@@ -44,9 +44,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import IdentificationError, RequestError, ShapeError
-from ..runtime._dynamics import Dynamics
-from ..runtime._jit import jit
+from ..._errors import IdentificationError, RequestError, ShapeError
+from ...runtime._dynamics import Dynamics
+from ...runtime._jit import jit
 from ._identification import BaseParameters, base_parameters
 
 CRITERIA = ("cond", "logdet")

@@ -50,8 +50,8 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-from .._errors import RequestError, ShapeError
-from ..runtime._dynamics import Dynamics
+from ..._errors import RequestError, ShapeError
+from ...runtime._dynamics import Dynamics
 
 ENERGY_QUANTITIES = ("kinetic_energy_regressor", "potential_energy_regressor", "friction_power_regressor")
 """What :func:`energy_balance` evaluates (``friction_power_regressor`` only for a robot with drives)."""

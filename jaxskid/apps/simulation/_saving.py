@@ -2,7 +2,7 @@
 
 A rollout of ``steps`` steps of ``dt`` visits the states ``x_k`` at ``t_k = k dt``, ``k = 0 .. steps``. A
 :class:`SaveAt` names the step numbers ``k`` whose states are returned; the others are never stacked
-(:mod:`jaxskid.apps._loop` builds the loops). A :class:`Checkpoint` makes the reverse pass of ``jax.grad``
+(:mod:`jaxskid.apps.simulation._loop` builds the loops). A :class:`Checkpoint` makes the reverse pass of ``jax.grad``
 store the state only every ``block`` steps and recompute the steps in between.
 """
 
@@ -16,7 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RequestError
+from ..._errors import RequestError
 
 
 def _count(value, what: str) -> int:

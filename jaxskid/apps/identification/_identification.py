@@ -30,14 +30,13 @@ import numpy as np
 import optax
 import scipy.linalg
 
-from .._errors import IdentificationError, IdentificationWarning, RequestError, ShapeError
-from ..runtime._dynamics import Dynamics
-from ..runtime._checks import check_finite
-from ..runtime._jit import jit
+from ..._errors import IdentificationError, IdentificationWarning, RequestError, ShapeError
+from ...runtime._dynamics import Dynamics
+from ...runtime._checks import check_finite
+from ...runtime._jit import jit
+from ..simulation import RK4, Trajectory, rollout
 from . import _consistent
-from ._integrators import RK4
-from ._parameterizations import LogCholesky, Standard, bounded, physically_consistent
-from ._simulate import Trajectory, rollout
+from ._parameterizations import LogCholesky, Standard, bounded
 
 
 # ---------------------------------------------------------------------------------------- base parameters

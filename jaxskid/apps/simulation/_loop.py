@@ -12,7 +12,7 @@ caller takes the torques from ``us`` itself.
   states, written in place (``dynamic_update_slice``, whose derivative needs only the index, so reverse
   mode stores no copy of the buffer).
 
-Either may run its steps in segments under ``jax.checkpoint`` (:class:`~jaxskid.apps._saving.Checkpoint`).
+Either may run its steps in segments under ``jax.checkpoint`` (:class:`~jaxskid.apps.simulation._saving.Checkpoint`).
 """
 
 from __future__ import annotations

@@ -31,17 +31,17 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import RequestError, ShapeError
-from ..runtime._jit import traced
+from ..._errors import RequestError, ShapeError
+from ...runtime._jit import traced
 from ._field import Controller, HeldInput
-from ._simulate import Trajectory
+from ._rollout import Trajectory
 
 _NAMES = ("R", "L", "k_t", "k_e", "ratio")
 
 
 @jax.tree_util.register_pytree_node_class
 class DCMotors:
-    """DC motors on the joints (the model in :mod:`jaxskid.apps._motor`): one motor per joint of ``joints``.
+    """DC motors on the joints (the model in :mod:`jaxskid.apps.simulation._motor`): one motor per joint of ``joints``.
 
     Args:
         R: armature resistance (ohm), ``> 0``.
@@ -175,7 +175,7 @@ class DCMotors:
 
 class _MotorController(Controller):
     """The motors as a controller: state ``z`` the currents ``(m,)`` (``()`` if quasi-static); the voltages
-    from ``voltage(t, x)``, or the held input row ``u_k`` (:class:`~jaxskid.apps._field.HeldInput`)."""
+    from ``voltage(t, x)``, or the held input row ``u_k`` (:class:`~jaxskid.apps.simulation._field.HeldInput`)."""
 
     def __init__(self, motors: DCMotors, voltage: Callable | None):
         self.motors, self.voltage = motors, voltage

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._errors import IdentificationError, RequestError, ShapeError
+from ..._errors import IdentificationError, RequestError, ShapeError
 
 
 def _scipy_signal():

@@ -32,7 +32,7 @@ where it settles is stiffer than where a too long step left it (solo12: -5.2e3 a
 
 class RolloutWarning(UserWarning):
     """A rollout's step amplifies a damped mode of its closed loop (the integrator injects energy): the message
-    names the rollouts and a step that keeps them stable (:mod:`jaxskid.apps._health`)."""
+    names the rollouts and a step that keeps them stable (:mod:`jaxskid.apps.simulation._health`)."""
 
 
 class StepStability(NamedTuple):
