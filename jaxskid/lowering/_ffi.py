@@ -110,11 +110,11 @@ LONG = 1024
 """Bodies up to this many statements stay one function (split, the Panda's regressor ran slower)."""
 
 HUGE = 5000
-"""Bodies of more statements are compiled at GCC's ``-Og`` (the rest of the library at ``-O2``). GCC takes
-about half as long on them, and they run as fast (the G1's Coriolis matrix, 6,900 statements, and its
-regressor, 11,000, measured with both libraries in one process, alternated), which shortens the cold
-lowering of such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices),
-and their build is short anyway."""
+"""Bodies of more statements are compiled at GCC's ``-Og`` (``c/og_begin.h``; the rest of the library at ``-O2``).
+GCC takes about half as long on them, and they run as fast (the G1's Coriolis matrix, 6,900 statements, and its
+regressor, 11,000, measured with both libraries in one process, alternated), which shortens the cold lowering of
+such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices), and their build is
+short anyway."""
 
 def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> list[str | Piece]:
     """The function ``name`` of ``kernel``, split into functions of :data:`CHUNK` statements that pass the
@@ -160,16 +160,13 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
         calls.append(f"    {piece}({args}, w);")
     workspace = f"    {vec} w[{max(len(slots), 1)}];"
     if len(statements) > HUGE:
-        pieces = [_OG_PUSH, *pieces, _OG_POP]
+        pieces = [template("og_begin.h").rstrip("\n"), *pieces, template("og_end.h").rstrip("\n")]
     out: list[str | Piece] = []
     for k, piece in enumerate(pieces):
         out += ["\n"] * (k > 0) + [piece]
     return out + [f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"]
 
 
-_OG_PUSH = '#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC push_options\n#pragma GCC optimize ("Og")\n#endif'
-_OG_POP = "#if defined(__GNUC__) && !defined(__clang__)\n#pragma GCC pop_options\n#endif"
-"""Around the pieces of a body longer than :data:`HUGE` statements: GCC compiles them at ``-Og``."""
 
 
 def _vector_flags() -> tuple[str, ...]:

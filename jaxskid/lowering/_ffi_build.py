@@ -18,6 +18,7 @@ from pathlib import Path
 from .._generated import NativeSource
 from ._ffi import FFI_CFLAGS, LANES, Piece, _vector_flags, glue_parts, include_dir
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
+from ._templates import fill, template
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,6 @@ def split(glue: list[str | Piece], cores: int) -> tuple[str, int]:
     def text(p: str | Piece) -> str:
         if not isinstance(p, Piece):
             return p
-        return (f"#if JAXSKID_PART == {owner[p.name]}\nPIECE void {p.name}({p.params})\n{p.body}#else\n"
-                f"PIECE void {p.name}({p.params});\n#endif\n")
+        return fill(template("piece.c"), OWNER=owner[p.name], NAME=p.name, PARAMS=p.params, BODY=p.body)
 
-    return '#define PIECE __attribute__((noinline, visibility("hidden")))\n' + "".join(map(text, glue)), parts
+    return template("piece_prelude.h") + "".join(map(text, glue)), parts

@@ -1,0 +1,4 @@
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC push_options
+#pragma GCC optimize ("Og")
+#endif

@@ -1,0 +1,5 @@
+#if JAXSKID_PART == @OWNER@
+PIECE void @NAME@(@PARAMS@)
+@BODY@#else
+PIECE void @NAME@(@PARAMS@);
+#endif

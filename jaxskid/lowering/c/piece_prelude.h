@@ -1,0 +1,1 @@
+#define PIECE __attribute__((noinline, visibility("hidden")))
