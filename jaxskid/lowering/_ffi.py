@@ -116,6 +116,7 @@ regressor, 11,000, measured with both libraries in one process, alternated), whi
 such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's mass matrices), and their build is
 short anyway."""
 
+
 def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> list[str | Piece]:
     """The function ``name`` of ``kernel``, split into functions of :data:`CHUNK` statements that pass the
     values later pieces read through a workspace; the outputs ``zeros`` are not assigned. GCC's register
