@@ -54,7 +54,8 @@ def table(header: list[str], rows: list[list[str]]) -> list[str]:
 
 def command() -> str:
     """The command line that runs this process, from the repository root; ``taskset -c CPUS`` first where the
-    process may run on fewer cores than the machine has (XLA's threads and the native kernels' follow)."""
+    process may run on fewer cores than the machine has (XLA's threads and the native kernels' follow), and
+    jaxskid's switches where the environment sets them (``JAXSKID_NATIVE=0``)."""
     script = Path(sys.argv[0]).resolve()
     try:
         script = script.relative_to(ROOT)
@@ -63,7 +64,8 @@ def command() -> str:
     words = ["python", script.as_posix(), *sys.argv[1:]]
     if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) < (os.cpu_count() or 1):
         words = ["taskset", "-c", ",".join(map(str, sorted(os.sched_getaffinity(0)))), *words]
-    return shlex.join(words)
+    switches = [f"{k}={os.environ[k]}" for k in ("JAXSKID_NATIVE", "JAXSKID_SYNC_DISPATCH") if k in os.environ]
+    return shlex.join([*switches, *words]) if switches else shlex.join(words)
 
 
 def _version(name: str) -> str | None:

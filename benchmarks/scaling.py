@@ -22,8 +22,9 @@ Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. F
 
 Quantities Pinocchio lacks (``mass_matrix_ddot``, ``coriolis_matrix_dot``, ``coriolis_matrix_ddot``, if
 asked for) are reported against jaxskid's own mass matrix at the same size. ``JAXSKID_NATIVE=0`` in the
-environment times the pure-JAX form of every quantity (the form used off CPU). The plot is time per state
-against DOF on log-log axes, one line per quantity for jaxskid (solid) and Pinocchio (dashed).
+environment times the pure-JAX form of every quantity (the form used off CPU); ``--float32`` adds the time
+per state on float32 states. The plot is time per state against DOF on log-log axes, one line per quantity
+for jaxskid (solid) and Pinocchio (dashed).
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ def _pinocchio_time(fn, states: np.ndarray, repeats: int) -> float:
     return _median(loop, repeats) / count
 
 
-def measure(robot_name: str, quantities, batch: int, repeats: int, out=print) -> list[dict]:
+def measure(robot_name: str, quantities, batch: int, repeats: int, out=print, single: bool = False) -> list[dict]:
     """The rows of one robot: per quantity, cold time, jaxskid and Pinocchio per state."""
     path, lock = ROBOTS[robot_name]
     robot = jaxskid.load(ERD / path, lock=lock)
@@ -122,11 +123,16 @@ def measure(robot_name: str, quantities, batch: int, repeats: int, out=print) ->
             ours = _median(lambda: jax.block_until_ready(fn(*args)), repeats) / batch
             matrix = len(dyn.signature(name)[1]) >= 2  # also timed written into an earlier result (out=)
             reused = _reused_time(fn, args, repeats) / batch if matrix else None
+            f32 = None
+            if single:  # the same function on float32 states (its program traced and compiled again)
+                args32 = [a.astype(jnp.float32) for a in args]
+                jax.block_until_ready(fn(*args32))
+                f32 = _median(lambda: jax.block_until_ready(fn(*args32)), repeats) / batch
         theirs = _pinocchio_time(pin_calls[name], states, repeats) if name in pin_calls else None
         if name == "mass_matrix":
             mass_time = ours
         rows.append({"robot": robot_name, "n_dof": n, "quantity": name, "cold": cold, "jaxskid": ours,
-                     "reused": reused, "pinocchio": theirs, "mass_matrix": mass_time})
+                     "reused": reused, "pinocchio": theirs, "mass_matrix": mass_time, "f32": f32})
         out(_row_line(rows[-1]))
     return rows
 
@@ -151,8 +157,9 @@ def _row_line(row: dict) -> str:
         into = f"{reused * 1e6:.2f} µs" if reused else "-"
     else:
         peer, into = "- | -", "-"
+    single = "" if row["f32"] is None else f" {row['f32'] * 1e6:.2f} µs ({row['jaxskid'] / row['f32']:.2f}x) |"
     return (f"| {row['robot']} | {row['n_dof']} | {row['quantity']} | {row['cold']:.1f} s "
-            f"| {row['jaxskid'] * 1e6:.2f} µs | {into} | {peer} |")
+            f"| {row['jaxskid'] * 1e6:.2f} µs | {into} | {peer} |{single}")
 
 
 def plot(rows: list[dict], out: Path) -> None:
@@ -221,6 +228,9 @@ def main() -> None:
     parser.add_argument("--floating", action=argparse.BooleanOptionalAction, default=True,
                         help="then the floating-base rows of benchmarks/floating_base.py: tau and M of solo12 and "
                              "the G1 on a free-flyer, and solo12's constrained forward dynamics on four contacts")
+    parser.add_argument("--float32", action="store_true",
+                        help="also time each function on float32 states: the column float32 per state, and float64's "
+                             "time over float32's (> 1: float32 is faster)")
     doc_tables.add_option(parser)
     args = parser.parse_args()
     empty_compilation_cache()
@@ -233,13 +243,14 @@ def main() -> None:
           f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}, sine and cosine {args.trig}")
     out = doc_tables.Lines()
     out("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | with out= (ratio) "
-        "| Pinocchio per call | ratio |")
-    out("|---|---|---|---|---|---|---|---|")
+        "| Pinocchio per call | ratio |" + (" float32 per state (float64 / float32) |" if args.float32 else ""))
+    out("|---|---|---|---|---|---|---|---|" + ("---|" if args.float32 else ""))
     rows = []
     for robot in args.robots.split(","):
-        rows += measure(robot, quantities, args.batch, args.repeats, out)
+        rows += measure(robot, quantities, args.batch, args.repeats, out, args.float32)
     native = os.environ.get("JAXSKID_NATIVE", "1")
-    doc_tables.write(args.markdown, out, f"Batch {args.batch}, float64, every inertial parameter symbolic, medians "
+    single = "; the float32 column: the same function on float32 states" if args.float32 else ""
+    doc_tables.write(args.markdown, out, f"Batch {args.batch}, float64{single}, every inertial parameter symbolic, medians "
                      f"of {args.repeats}; Pinocchio one call from Python in the same run; cold: derive, lower, "
                      f"compile and first call with every cache empty; JAXSKID_NATIVE={native}, sine and cosine "
                      f"{args.trig}.")

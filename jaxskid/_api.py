@@ -131,7 +131,8 @@ def lower(
         robot = model if symbolic is None else model.keep_symbolic(symbolic)
         asked, options = resolve(robot, quantities), options or Options()
         names = resolve(robot, [*asked, *(k for n in asked for k in QUANTITIES[n].derivatives)])
-    key = module_key(robot, names, options)
+    native_c = native_enabled()  # where no native kernel can run (a GPU, JAXSKID_NATIVE=0), no C is printed
+    key = module_key(robot, names, options, native_c)
     if cache:
         default_compilation_cache()
     path = entry_path(cache_dir, robot.name, key) if cache else None
@@ -139,9 +140,9 @@ def lower(
     if found is None:
         eqs = model if isinstance(model, Equations) else derive(robot, names, options=options, progress=progress)
         native = []
-        for library in native_sources(eqs, names, jax_names, first=asked):  # kernels shared with the JAX module
-            native.append(library)
-            if cache and native_enabled():
+        for library in native_sources(eqs, names, jax_names, first=asked) if native_c else ():
+            native.append(library)  # its kernels are the JAX module's programs, printed in C
+            if cache:
                 # the C compiler works on each library while the next and the JAX module are printed; the
                 # one of the quantities that only serve the requested ones' derivatives at a low priority
                 later = not set(library.quantities) & set(asked)
@@ -153,12 +154,13 @@ def lower(
                     inertia=functools.partial(body_standard_map, robot), checks=checks)
 
 
-def module_key(robot: Robot, names: Sequence[str], options: Options | None = None) -> str:
+def module_key(robot: Robot, names: Sequence[str], options: Options | None = None, native: bool = True) -> str:
     """The cache key of the JAX module of ``names``: everything that determines it (the generator's version,
-    the robot, the quantities, the options and the defaults, which the module's METADATA holds)."""
+    the robot, the quantities, the options and the defaults, which the module's METADATA holds, and whether
+    it carries the C of its native kernels)."""
     options = options or Options()
     return request_key([GENERATOR_VERSION, robot.fingerprint(), repr(tuple(names)), repr(options),
-                        repr(sorted(robot.default_params().items()))])
+                        repr(sorted(robot.default_params().items())), *(() if native else ("without native C",))])
 
 
 def compile_native(

@@ -13,7 +13,7 @@ returning ``std::array`` (``p`` defaults to ``default_params``). Both compile wa
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
@@ -141,7 +141,9 @@ def _c_string(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def emit_c(layout: Layout) -> dict[str, str]:
+def emit_c(layout: Layout, bodies: Collection[str] | None = None) -> dict[str, str]:
+    """``{<stem>.h, <stem>.c}``: the header declares a function per quantity; the source defines the parameter
+    tables and the functions of ``bodies`` (default: every quantity)."""
     s, S = layout.stem, layout.stem.upper()
     n_par = len(layout.parameters)
     head = comment(layout.header("C99", _calling(layout, cxx=False)), "//")
@@ -171,7 +173,8 @@ def emit_c(layout: Layout) -> dict[str, str]:
                  f"{_initializer([_c_double(v) for v in layout.defaults])};")
         c.append("")
     for k in layout.programs:
-        c += [f"void {s}_{k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
+        if bodies is None or k.name in bodies:
+            c += [f"void {s}_{k.name}({_params(k)})", "{", *body_lines(k, printer, decl="const double"), "}", ""]
     return {f"{s}.h": "\n".join(h), f"{s}.c": "\n".join(c)}
 
 
@@ -218,15 +221,18 @@ def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequ
 
 def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> NativeSource:
     layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])), naming)
-    files = emit_c(layout)
+    printer = VectorPrinter()
+    vectors = {k.name: vector_kernel(k, printer) for k in layout.programs}
+    # the handlers call the functions over vectors of states; the backward step falls back to the functions of
+    # one state where one of its two has no vector form (jaxskid.lowering._ffi.glue_parts): only those are printed
+    scalar = backward and any(vectors[n] is None for n in FFI_QUANTITIES)
+    files = emit_c(layout, FFI_QUANTITIES if scalar else ())
     table = []
     for name in kernels:
         args = (*eqs.quantities[name].args, "p")
         table.append(NativeKernel(name, tuple(layout.arg_size(a) for a in args),
                                   tuple(len(layout.arg_shape(a)) for a in args),
                                   math.prod(eqs.quantities[name].shape), len(eqs.quantities[name].shape)))
-    printer = VectorPrinter()
-    vectors = {k.name: vector_kernel(k, printer) for k in layout.programs}
     return NativeSource(layout.stem, files[f"{layout.stem}.h"], files[f"{layout.stem}.c"], backward, tuple(table),
                         vectors)
 
