@@ -364,6 +364,21 @@ def test_split_glue_defines_each_piece_once():
     assert text.rfind("#if JAXSKID_PART == 0", 0, handler) > text.rfind("#endif", 0, handler)
 
 
+def test_no_c_where_native_kernels_are_off(monkeypatch, tmp_path):
+    """With native kernels off no C is printed, and the module cached then does not serve a process that has
+    them: the two are cached apart."""
+    robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
+    monkeypatch.setenv("JAXSKID_NATIVE", "0")
+    off = jaxskid.lower(robot, quantities=["mass_matrix"], cache_dir=tmp_path)
+    assert off.module.native == () and "NATIVE_C" not in off.source
+    monkeypatch.delenv("JAXSKID_NATIVE")
+    on = jaxskid.lower(robot, quantities=["mass_matrix"], cache_dir=tmp_path)
+    assert on.module.native and on.path != off.path
+    assert on.native_target("mass_matrix") is not None
+    q = _states(on.n_dof, (4,), count=1)[0]
+    np.testing.assert_allclose(off.mass_matrix(q), on.mass_matrix(q), rtol=1e-13, atol=1e-14)
+
+
 def test_the_switch_is_read_when_a_dynamics_is_made(monkeypatch):
     """JAXSKID_NATIVE is read when a Dynamics is made and kept for its life: turned off at the first use of one
     made before, it changes nothing there, and one made while it was off stays without kernels."""
