@@ -20,7 +20,8 @@ REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / "docs"
 TABLES = DOCS / "performance"
 INCLUDE = re.compile(r'^--8<-- "([^"]+)"\s*$', flags=re.M)
-WRITTEN = re.compile(r"^Written by `((?:taskset -c [\d,]+ )?python benchmarks/[^`]+)` on \d{4}-\d\d-\d\d", flags=re.M)
+WRITTEN = re.compile(r"^Written by `((?:JAXSKID_\w+=\w+ )*(?:taskset -c [\d,]+ )?python benchmarks/[^`]+)` on "
+                     r"\d{4}-\d\d-\d\d", flags=re.M)
 TIMING = re.compile(r"\d\s?(?:ns|µs|us)\b|\b\d+(?:\.\d+)?x\b")
 
 
@@ -51,7 +52,7 @@ def test_every_table_is_written_by_a_benchmark_and_included():
         found = WRITTEN.findall(table.read_text(encoding="utf-8"))
         assert len(found) == 1, f"{rel}: no line 'Written by `python benchmarks/...` on DATE' (or several)"
         words = shlex.split(found[0])
-        words = words[words.index("python"):]  # after a taskset prefix, if any
+        words = words[words.index("python"):]  # after the switches and a taskset prefix, if any
         script = REPO / words[1]
         assert script.exists(), f"{rel}: written by {words[1]}, which does not exist"
         assert "--markdown" in script.read_text(encoding="utf-8") or "doc_tables.add_option" in script.read_text(
