@@ -14,6 +14,8 @@ import numpy as np
 import pinocchio as pin
 
 import jaxskid
+from pinref import to_pinocchio
+from randrobot import random_robot
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOTS_DIR = REPO / "robots"
@@ -58,6 +60,17 @@ def pinocchio_urdf_model(path: Path, lock: dict[str, float] | None = None):
             q[j.idx_q : j.idx_q + j.nq] = [value] if j.nq == 1 else [np.cos(value), np.sin(value)]
         model = pin.buildReducedModel(model, [model.getJointId(name) for name in lock], q)
     return model
+
+
+def random_tree_regressor(rng, n_dof: int, prismatic: float):
+    """A random tree (``randrobot.random_robot``: revolute axes off the body origins, a share ``prismatic`` of
+    prismatic joints) lowered with its regressor, beside Pinocchio's model of it: ``(robot, dyn, params, pi,
+    model, data)`` with the default parameters ``params``, their standard vector ``pi`` and the model's data."""
+    robot = random_robot(rng, n_dof, tree=True, prismatic=prismatic)
+    dyn = jaxskid.lower(robot, ["regressor"])
+    params = robot.default_params()
+    model, _ = to_pinocchio(robot, params)
+    return robot, dyn, params, jaxskid.standard_params(robot, params), model, model.createData()
 
 
 def lowered(robot: jaxskid.Robot, closed: bool, extra=()):
