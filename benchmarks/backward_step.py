@@ -29,7 +29,7 @@ import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
 from jaxskid.runtime._forward import accelerations  # noqa: E402
-from core import median_time  # noqa: E402  (benchmarks/core.py, beside this script)
+from core import add_robot_options, median_time  # noqa: E402  (benchmarks/core.py, beside this script)
 from scaling import ERD, ROBOTS, _pinocchio_model  # noqa: E402
 import doc_tables  # noqa: E402  (benchmarks/doc_tables.py)
 
@@ -70,10 +70,7 @@ def measure(name: str, batch: int, repeats: int) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--robots", default="panda,solo12,g1")
-    parser.add_argument("--batch", type=int, default=4096)
-    parser.add_argument("--repeats", type=int, default=11)
-    doc_tables.add_option(parser)
+    add_robot_options(parser, robots="panda,solo12,g1", batch=4096, repeats=11)
     args = parser.parse_args()
     print(f"jax {jax.__version__}, Pinocchio {pin.__version__}, float64, batch {args.batch}")
     out = doc_tables.Lines()

@@ -65,6 +65,21 @@ def alternating_medians(calls, repeats: int) -> list[float]:
     return [float(np.median(t)) for t in times]
 
 
+def add_robot_options(parser, robots: str, batch: int, repeats: int) -> None:
+    """``--robots`` (comma-separated names), ``--batch``, ``--repeats`` and ``--markdown PATH`` on a script's
+    argument parser, with the script's defaults."""
+    parser.add_argument("--robots", default=robots)
+    parser.add_argument("--batch", type=int, default=batch)
+    parser.add_argument("--repeats", type=int, default=repeats)
+    doc_tables.add_option(parser)
+
+
+def panda(quantities) -> jaxskid.Dynamics:
+    """example-robot-data's Panda as a 7-DOF arm (its fingers locked closed), lowered with ``quantities``."""
+    path, lock = ROBOTS["panda"]
+    return jaxskid.lower(jaxskid.load(path, lock=lock), quantities)
+
+
 def params_cost(repeats: int, markdown=None) -> None:
     """``inverse_dynamics`` of the G1 per call, parameters as a dict against a vector."""
     robot = jaxskid.load(G1)

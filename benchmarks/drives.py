@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
-from core import alternating_medians, median_time  # noqa: E402
+from core import add_robot_options, alternating_medians, median_time  # noqa: E402
 import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
 
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
@@ -35,10 +35,7 @@ ROBOTS = {
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--robots", default="ur10,panda")
-    parser.add_argument("--batch", type=int, default=4096)
-    parser.add_argument("--repeats", type=int, default=9)
-    doc_tables.add_option(parser)
+    add_robot_options(parser, robots="ur10,panda", batch=4096, repeats=9)
     args = parser.parse_args()
     out = doc_tables.Lines()
     out("| robot | batch | without drives | with drives | with / without | native (without, with) "

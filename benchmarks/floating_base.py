@@ -27,22 +27,13 @@ import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
 import doc_tables  # noqa: E402  (benchmarks/doc_tables.py, beside this script)
+from core import add_robot_options, median_time  # noqa: E402  (benchmarks/core.py, beside this script)
 
 ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots"))
 ROBOTS = {"solo12": ERD / "solo_description/robots/solo12.urdf", "g1": ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf"}
 FEET = ("FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT")
 STAND = np.array([0, 0.8, -1.6, 0, 0.8, -1.6, 0, -0.8, 1.6, 0, -0.8, 1.6])
-
-
-def median_time(fn, repeats: int) -> float:
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def states(model, batch: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -133,9 +124,6 @@ def main(batch: int = 4096, repeats: int = 7, robots=tuple(ROBOTS), markdown=Non
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--batch", type=int, default=4096)
-    parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--robots", default=",".join(ROBOTS))
-    doc_tables.add_option(parser)
+    add_robot_options(parser, robots=",".join(ROBOTS), batch=4096, repeats=7)
     args = parser.parse_args()
     main(args.batch, args.repeats, args.robots.split(","), args.markdown)

@@ -14,6 +14,7 @@ the median time per evaluation of the accelerations (4 per step and rollout), an
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -28,6 +29,9 @@ import pinocchio as pin
 import jaxskid
 import doc_tables  # benchmarks/doc_tables.py, beside this script
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from helpers import users_rk4  # noqa: E402  (tests/helpers.py: the loop tests/test_forward_dynamics.py checks)
+
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 ROBOTS = {
     "panda": ("panda_description/urdf/panda.urdf", {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}),
@@ -36,24 +40,10 @@ ROBOTS = {
 }
 
 
-def users_rollout(accel, dt: float):
-    """A hand-written RK4 rollout over a batch, as the documentation suggests writing one."""
-
-    def rollout(q, qd, u, p):
-        def deriv(x, tau):
-            return x[1], accel(x[0], x[1], tau, p)
-
-        def step(x, tau):
-            k1 = deriv(x, tau)
-            k2 = deriv([a + dt / 2 * k for a, k in zip(x, k1)], tau)
-            k3 = deriv([a + dt / 2 * k for a, k in zip(x, k2)], tau)
-            k4 = deriv([a + dt * k for a, k in zip(x, k3)], tau)
-            x = [a + dt / 6 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4)]
-            return x, x[0]
-
-        return jax.lax.scan(step, [q, qd], u)[1]
-
-    return rollout
+def positions(accel):
+    """The user's RK4 rollout at 1 ms (``users_rk4``) of a batch, returning the joint positions after each step."""
+    rollout = users_rk4(accel, 1e-3)
+    return lambda q, qd, u, p: rollout(q, qd, u, p)[0]
 
 
 def pinocchio_aba(path: Path, lock, q, qd, tau) -> float:
@@ -96,10 +86,10 @@ def main() -> None:
         raw = jax.vmap(dyn.raw("forward_dynamics"), in_axes=(0, 0, 0, None))
         public = dyn.forward_dynamics
         calls = {
-            "dyn.raw, jaxskid.jit": jaxskid.jit(users_rollout(raw, 1e-3)),
-            "dyn.raw, jax.jit": jax.jit(users_rollout(raw, 1e-3)),
-            "dyn.forward_dynamics, jaxskid.jit": jaxskid.jit(users_rollout(public, 1e-3)),
-            "dyn.forward_dynamics, jax.jit": jax.jit(users_rollout(public, 1e-3)),
+            "dyn.raw, jaxskid.jit": jaxskid.jit(positions(raw)),
+            "dyn.raw, jax.jit": jax.jit(positions(raw)),
+            "dyn.forward_dynamics, jaxskid.jit": jaxskid.jit(positions(public)),
+            "dyn.forward_dynamics, jax.jit": jax.jit(positions(public)),
         }
         compile_s = {}
         for label, fn in calls.items():

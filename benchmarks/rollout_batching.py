@@ -12,9 +12,7 @@ repeats: wall time, and the process's CPU time (steadier on a loaded machine).
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import time
-from pathlib import Path
 
 import jax
 
@@ -24,11 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxskid
-
-ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
-    "cmeel.prefix/share/example-robot-data/robots"))
-PANDA = ERD / "panda_description/urdf/panda.urdf"
-LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+from core import panda  # benchmarks/core.py, beside this script
 
 
 def main(argv=None):
@@ -37,7 +31,7 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=50)
     args = ap.parse_args(argv)
-    dyn = jaxskid.lower(jaxskid.load(PANDA, lock=LOCK), quantities=["forward_dynamics", "mass_matrix", "inverse_dynamics"])
+    dyn = panda(["forward_dynamics", "mass_matrix", "inverse_dynamics"])
     rng = np.random.default_rng(0)
     b, steps, dt = args.batch, args.steps, 1e-3
     x0 = jnp.asarray(np.concatenate([rng.uniform(-1, 1, (b, 7)), np.zeros((b, 7))], axis=1))

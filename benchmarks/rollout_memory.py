@@ -12,9 +12,7 @@ outputs; time: median of repeated calls.
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import time
-from pathlib import Path
 
 import jax
 
@@ -24,11 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxskid
-
-ERD = Path(importlib.metadata.distribution("example-robot-data").locate_file(
-    "cmeel.prefix/share/example-robot-data/robots"))
-PANDA = ERD / "panda_description/urdf/panda.urdf"
-LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+from core import panda  # benchmarks/core.py, beside this script
 
 
 def main(argv=None):
@@ -36,7 +30,7 @@ def main(argv=None):
     ap.add_argument("--steps", default="500,2000,8000")
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args(argv)
-    dyn = jaxskid.lower(jaxskid.load(PANDA, lock=LOCK), ["forward_dynamics", "mass_matrix", "inverse_dynamics"])
+    dyn = panda(["forward_dynamics", "mass_matrix", "inverse_dynamics"])
     x0 = jnp.concatenate([jnp.linspace(0.3, -0.2, 7), jnp.zeros(7)])
     print(f"jax {jax.__version__}; Panda, RK4, 1 ms steps, gradient of sum(x(T)^2) with respect to x0")
     print(f"{'steps':>6} {'checkpoint':>12} {'temp MB':>9} {'compile s':>10} {'gradient ms':>12}")

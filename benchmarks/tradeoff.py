@@ -103,19 +103,6 @@ def load_robot(key: str):
     return jaxskid.load(path, lock=lock)
 
 
-def round_robin(calls: dict, repeats: int) -> dict:
-    """Median wall time of each call; the calls are interleaved so that a loaded machine slows them alike."""
-    for fn in calls.values():
-        fn()
-    times = {k: [] for k in calls}
-    for _ in range(repeats):
-        for k, fn in calls.items():
-            t = time.perf_counter()
-            fn()
-            times[k].append(time.perf_counter() - t)
-    return {k: float(np.median(v)) for k, v in times.items()}
-
-
 def rel_err_max(got, ref_hi, ref_lo=None) -> float:
     """Max over states of ||got - ref|| / ||ref|| (entries of one state flattened)."""
     got = np.asarray(got, dtype=np.float64).reshape(len(ref_hi), -1)
@@ -258,7 +245,7 @@ def measure(key: str, robot, states, params, ref, pins, derived: dict, cache: st
                 row["err_pin"][dtype, q] = rel_err_max(value, pins[q])
                 calls[row["setting"], dtype, q] = (lambda c=compiled, a=args, p=p: c(*a, p).block_until_ready())
         print(f"  compiled {row['setting']:20s} ({sum(row['compile'].values()):.1f} s)", flush=True)
-    times = round_robin(calls, repeats)
+    times = tradeoff_rollouts.round_robin(calls, repeats)  # the same interleaving as the rollout study
     batch = len(states["q"])
     for row in rows:
         row["time"] = {(d, q): times[s, d, q] / batch for (s, d, q) in times if s == row["setting"]}

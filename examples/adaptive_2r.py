@@ -10,7 +10,6 @@ model, must never increase; the example reports its largest increase along the s
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
@@ -22,14 +21,9 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "arm_2r.yaml"
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def reference(t):
@@ -83,10 +77,7 @@ def main(out_dir=None, seconds=40.0, dt=2e-3):
         axes[1].axhline(truth[k], color=f"C{k}", ls="--", lw=0.8)
     axes[1].set(xlabel="t [s]", ylabel="estimate", title="base parameters (dashed: true values)")
     axes[1].legend(fontsize=7)
-    fig.tight_layout()
-    figure = output_dir(out_dir) / "adaptive_2r.png"
-    fig.savefig(figure, dpi=100)
-    plt.close(fig)
+    figure = save_figure(fig, output_dir(out_dir) / "adaptive_2r.png")
 
     result = {
         "error_per_5s": per_5s,

@@ -11,7 +11,6 @@ The batch is vmapped, and split across devices when there are several (``jax.dev
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
@@ -23,14 +22,9 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "arm_3dof.yaml"
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def main(out_dir=None, batch=4096, steps=1500, dt=2e-3, seed=0):
@@ -80,10 +74,7 @@ def main(out_dir=None, batch=4096, steps=1500, dt=2e-3, seed=0):
     axes[1].set(xlabel="final error q - q_d [rad]", ylabel="rollouts",
                 title=f"{batch} arms, masses +-30 %, nominal gravity compensation")
     axes[1].legend(fontsize=8)
-    fig.tight_layout()
-    figure = output_dir(out_dir) / "batched_rollouts.png"
-    fig.savefig(figure, dpi=100)
-    plt.close(fig)
+    figure = save_figure(fig, output_dir(out_dir) / "batched_rollouts.png")
 
     state_steps = batch * steps
     result = {

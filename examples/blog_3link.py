@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
@@ -31,14 +30,9 @@ import sympy as sp
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "arm_3dof.yaml"
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def closed_form(eqs, expr):
@@ -155,10 +149,7 @@ def main(out_dir=None, seconds=5.0, dt=1e-3):
     axes[0].legend()
     axes[1].plot(t, (e - e[0]) / np.abs(e).max())
     axes[1].set(xlabel="t [s]", ylabel="relative energy error", title="energy from forward kinematics")
-    fig.tight_layout()
-    figure = output_dir(out_dir) / "blog_3link.png"
-    fig.savefig(figure, dpi=100)
-    plt.close(fig)
+    figure = save_figure(fig, output_dir(out_dir) / "blog_3link.png")
 
     blog = blog_route(output_dir(out_dir))
     result = {

@@ -16,7 +16,6 @@ the factors (= of the masses) against iterations.
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
@@ -29,14 +28,9 @@ import optax
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import erd_urdf, output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
-
-
-def panda_urdf() -> Path:
-    import pinocchio as pin
-
-    return Path(pin.__file__).parents[4] / "share/example-robot-data/robots/panda_description/urdf/panda.urdf"
 
 
 class Swing(jaxskid.Controller):
@@ -64,15 +58,9 @@ class Swing(jaxskid.Controller):
         return hash((Swing, id(self.model), self.kp, self.kd))
 
 
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
 def main(out_dir=None, iterations=150, batch=8, steps=200, dt=4e-3, seed=0):
     rng = np.random.default_rng(seed)
-    robot = jaxskid.load(panda_urdf(), lock=LOCK)
+    robot = jaxskid.load(erd_urdf("panda_description/urdf/panda.urdf"), lock=LOCK)
     nominal = robot.default_params()
     # each link's true inertial parameters (mass, first moments, inertia) are its nominal ones times a
     # factor, as for a link of another density; the factors are what is fitted
@@ -141,9 +129,7 @@ def plot(path: Path, losses, errors) -> None:
     a.set(xlabel="iteration", ylabel="mean squared position error (rad$^2$)", title="loss")
     b.semilogy(100 * np.asarray(errors))
     b.set(xlabel="iteration", ylabel="largest relative mass error (%)", title="parameter error")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 if __name__ == "__main__":

@@ -14,8 +14,6 @@
 
 from __future__ import annotations
 
-import importlib.metadata
-import os
 import sys
 import time
 from pathlib import Path
@@ -26,21 +24,11 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import erd_urdf, output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 NOISE = np.array([0.3, 0.3, 0.2, 0.2, 0.1, 0.05, 0.05])  # Nm, per joint
 BATCH = 500  # one batch size: every new size compiles the 490-output regressor again
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def panda_urdf() -> Path:
-    share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
-    return Path(share) / "robots/panda_description/urdf/panda.urdf"
 
 
 def excitation(rng, t, n=7, harmonics=5, base_freq=0.2):
@@ -73,16 +61,13 @@ def plot(figure: Path, t, tau_v, pred, z_scores) -> Path:
     axes[1].axhline(-3, color="k", lw=0.5)
     axes[1].set(xlabel="base parameter", ylabel="(estimate - truth) / std",
                 title=f"{len(z_scores)} base parameters, weighted least squares")
-    fig.tight_layout()
-    fig.savefig(figure, dpi=100)
-    plt.close(fig)
-    return figure
+    return save_figure(fig, figure)
 
 
 def main(out_dir=None, seed=0):
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
-    robot = jaxskid.load(panda_urdf(), lock=LOCK)
+    robot = jaxskid.load(erd_urdf("panda_description/urdf/panda.urdf"), lock=LOCK)
     dyn = jaxskid.lower(robot, ["regressor", "inverse_dynamics"])
     names = jaxskid.standard_parameter_names(robot)
     base = jaxskid.base_parameters(dyn, samples=BATCH, names=names)

@@ -30,8 +30,6 @@ values that differ from the URDF's (which has none). The script goes through wha
 
 from __future__ import annotations
 
-import importlib.metadata
-import os
 import sys
 import time
 from pathlib import Path
@@ -42,6 +40,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import erd_urdf, output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 DRIVES = {  # per joint: armature [kg m^2], viscous [N m s], Coulomb [N m], offset [N m]
     "Ia": [0.40, 0.40, 0.25, 0.05, 0.05, 0.04],
@@ -56,17 +55,6 @@ RATE, PERIODS = 200.0, 3  # measurement: Hz, periods recorded
 ENCODER, NOISE = 1e-4, 0.01  # rad per count; torque noise, fraction of each joint's RMS torque
 CUTOFF = 4.0  # Hz, Butterworth cutoff: 8 times the highest harmonic (0.5 Hz)
 ACCELERATION = 4.0  # rad/s^2, the excitation's acceleration bound
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def ur5_urdf() -> Path:
-    share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
-    return Path(share) / "robots/ur_description/urdf/ur5_robot.urdf"
 
 
 def true_params(robot: jaxskid.Robot) -> dict:
@@ -143,16 +131,13 @@ def plot(path: Path, result, design, t, tau, predicted, names) -> Path:
         if j == 0:
             a.legend(fontsize=7)
     fig.suptitle(f"UR5 with drives: validation RMS / noise RMS per joint {np.round(result, 2).tolist()}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(out_dir=None, seed=0, steps=150) -> dict:
     start = time.perf_counter()
     rng = np.random.default_rng(seed)
-    robot = jaxskid.load(ur5_urdf(), drives=True)
+    robot = jaxskid.load(erd_urdf("ur_description/urdf/ur5_robot.urdf"), drives=True)
     dyn = jaxskid.lower(robot, QUANTITIES)
     params = true_params(robot)
     pi = np.asarray(jaxskid.standard_params(robot, params))

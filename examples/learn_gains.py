@@ -12,11 +12,8 @@ gradient against central differences and reports the loss before and after.
 
 from __future__ import annotations
 
-import importlib.metadata
-import os
 import sys
 import time
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -26,27 +23,17 @@ import optax
 jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
+from _common import erd_urdf, output_dir  # noqa: E402  (examples/_common.py, beside this script)
 
 DT, SECONDS = 1e-3, 2.0
 STEPS = int(round(SECONDS / DT))
 X0 = jnp.concatenate([jnp.asarray([0.3, -1.2, 1.0, -0.5, 0.4, 0.2]), jnp.zeros(6)])  # displaced, at rest
 
 
-def ur5_urdf() -> Path:
-    share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
-    return Path(share) / "robots/ur_description/urdf/ur5_robot.urdf"
-
-
 def reference(t):
     """The joint positions to track: a slow sine about a home pose."""
     home = jnp.asarray([0.0, -1.0, 1.2, -0.6, 0.5, 0.0])
     return home + 0.2 * jnp.sin(2.0 * t) * jnp.asarray([1.0, 0.5, -0.5, 1.0, 0.5, 1.0])
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def make_loss(dyn):
@@ -69,7 +56,8 @@ def make_loss(dyn):
 
 def main(out_dir=None, iterations=40):
     start = time.perf_counter()
-    dyn = jaxskid.lower(jaxskid.load(ur5_urdf()), ["forward_dynamics", "gravity_torques"])
+    ur5 = jaxskid.load(erd_urdf("ur_description/urdf/ur5_robot.urdf"))
+    dyn = jaxskid.lower(ur5, ["forward_dynamics", "gravity_torques"])
     n = dyn.n_dof
     loss = make_loss(dyn)
     value_and_grad = jaxskid.jit(jax.value_and_grad(loss))

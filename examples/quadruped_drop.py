@@ -17,8 +17,6 @@ says nothing.
 
 from __future__ import annotations
 
-import importlib.metadata
-import os
 import sys
 import time
 from pathlib import Path
@@ -31,21 +29,11 @@ jax.config.update("jax_enable_x64", True)
 
 import jaxskid  # noqa: E402
 from jaxskid.apps.simulation._contact import NEEDED  # noqa: E402
+from _common import erd_urdf, output_dir, save_figure  # noqa: E402  (examples/_common.py, beside this script)
 
 STAND = np.array([0, 0.8, -1.6, 0, 0.8, -1.6, 0, -0.8, 1.6, 0, -0.8, 1.6])  # hip, thigh, knee per leg [rad]
 KP, KD = 20.0, 0.5  # joint PD [N m/rad], [N m s/rad]
 DT, SECONDS = 5e-4, 3.0
-
-
-def output_dir(out_dir=None) -> Path:
-    path = Path(out_dir or os.environ.get("JAXSKID_EXAMPLE_OUT") or Path(__file__).parent / "out")
-    path.mkdir(parents=True, exist_ok=True)
-    return path
-
-
-def solo12_urdf() -> Path:
-    share = importlib.metadata.distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data")
-    return Path(share) / "robots/solo_description/robots/solo12.urdf"
 
 
 def initial_states(robot, batch: int, rng) -> np.ndarray:
@@ -89,15 +77,12 @@ def plot(path: Path, t, height, forces, weight) -> Path:
     b.hist(100 * (forces.ravel() / (weight / 4) - 1), bins=40, color="C1")
     b.set(xlabel="final normal force against a quarter of the weight [%]", ylabel="feet",
           title="load per foot at t = 3 s")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def main(out_dir=None, batch=1024, seed=0) -> dict:
     start = time.perf_counter()
-    robot = jaxskid.load(solo12_urdf(), floating_base=True)
+    robot = jaxskid.load(erd_urdf("solo_description/robots/solo12.urdf"), floating_base=True)
     dyn = jaxskid.lower(robot, ["forward_dynamics", "kinetic_energy", "potential_energy", *NEEDED])
     weight = 9.81 * sum(v for k, v in robot.default_params().items() if k.endswith("_m"))
 

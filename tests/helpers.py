@@ -9,10 +9,13 @@ from __future__ import annotations
 import importlib.metadata
 from pathlib import Path
 
+import jax
 import numpy as np
 import pinocchio as pin
 
 import jaxskid
+from pinref import to_pinocchio
+from randrobot import random_robot
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOTS_DIR = REPO / "robots"
@@ -59,9 +62,42 @@ def pinocchio_urdf_model(path: Path, lock: dict[str, float] | None = None):
     return model
 
 
+def random_tree_regressor(rng, n_dof: int, prismatic: float):
+    """A random tree (``randrobot.random_robot``: revolute axes off the body origins, a share ``prismatic`` of
+    prismatic joints) lowered with its regressor, beside Pinocchio's model of it: ``(robot, dyn, params, pi,
+    model, data)`` with the default parameters ``params``, their standard vector ``pi`` and the model's data."""
+    robot = random_robot(rng, n_dof, tree=True, prismatic=prismatic)
+    dyn = jaxskid.lower(robot, ["regressor"])
+    params = robot.default_params()
+    model, _ = to_pinocchio(robot, params)
+    return robot, dyn, params, jaxskid.standard_params(robot, params), model, model.createData()
+
+
 def lowered(robot: jaxskid.Robot, closed: bool, extra=()):
     """Forward dynamics from M and tau (numeric L D L^T) or from the closed-form quantity."""
     return jaxskid.lower(robot, [*FD, *extra, *(["forward_dynamics"] if closed else [])])
+
+
+def users_rk4(accel, dt: float):
+    """A hand-written RK4 rollout, as a user writes one around ``dyn.raw`` (docs/quantities.md): ``accel(q, qd,
+    tau, p)`` maps a batch of states, each (batch, n); ``rollout(q, qd, u, p)``, torques ``u`` of shape (steps,
+    batch, n) held over each step of ``dt``, returns ``[q, qd]`` after each step, each (steps, batch, n)."""
+
+    def rollout(q, qd, u, p):
+        def deriv(x, tau):
+            return x[1], accel(x[0], x[1], tau, p)
+
+        def step(x, tau):
+            k1 = deriv(x, tau)
+            k2 = deriv([a + dt / 2 * k for a, k in zip(x, k1)], tau)
+            k3 = deriv([a + dt / 2 * k for a, k in zip(x, k2)], tau)
+            k4 = deriv([a + dt * k for a, k in zip(x, k3)], tau)
+            x = [a + dt / 6 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4)]
+            return x, x
+
+        return jax.lax.scan(step, [q, qd], u)[1]
+
+    return rollout
 
 
 class Integral(jaxskid.Controller):

@@ -19,8 +19,7 @@ import pytest
 import jaxskid
 from jaxskid import reference_derivatives
 from jaxskid.apps.identification._identification import random_states
-from pinref import to_pinocchio
-from randrobot import random_robot
+from helpers import random_tree_regressor
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -47,12 +46,7 @@ def test_reference_derivatives_closed_form():
 def test_mixed_regressor_matches_pinocchio_coriolis_matrix():
     """Y(q, qd, v, a) pi = M a + C(q, qd) v + Q_grav with Pinocchio's C (the Christoffel one)."""
     rng = np.random.default_rng(1)
-    robot = random_robot(rng, 4, tree=True, prismatic=0.3)
-    dyn = jaxskid.lower(robot, ["regressor"])
-    params = robot.default_params()
-    model, _ = to_pinocchio(robot, params)
-    data = model.createData()
-    pi = jaxskid.standard_params(robot, params)
+    _, dyn, params, pi, model, data = random_tree_regressor(rng, 4, prismatic=0.3)
     q, qd, _ = random_states(4, 3, seed=2)
     v, a = rng.normal(size=(2, 3, 4))
     for k in range(3):

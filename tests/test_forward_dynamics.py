@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 import jaxskid
-from helpers import FINGERS, PANDA, REPO, load, lowered, pinocchio_urdf_model
+from helpers import FINGERS, PANDA, REPO, load, lowered, pinocchio_urdf_model, users_rk4
 from jaxskid.apps.identification._identification import random_states
 from pinref import to_pinocchio
 from randrobot import random_robot
@@ -158,28 +158,6 @@ def test_ldl_solve_matches_numpy_and_rejects_indefinite_matrices():
     assert np.all(np.isnan(np.asarray(ldl_solve(jnp.asarray(singular), jnp.asarray(b)))))
 
 
-def _users_rk4(accel, p, dt):
-    """A hand-written RK4 rollout of ``accel(q, qd, tau, p)`` over a batch, as a user writes it with
-    ``dyn.raw``: ``jax.vmap`` inside ``lax.scan``, under a plain ``jax.jit``."""
-    f = jax.vmap(accel, in_axes=(0, 0, 0, None))
-
-    def rollout(q, qd, u, p):
-        def deriv(x, tau):
-            return x[1], f(x[0], x[1], tau, p)
-
-        def step(x, tau):
-            k1 = deriv(x, tau)
-            k2 = deriv([a + dt / 2 * k for a, k in zip(x, k1)], tau)
-            k3 = deriv([a + dt / 2 * k for a, k in zip(x, k2)], tau)
-            k4 = deriv([a + dt * k for a, k in zip(x, k3)], tau)
-            x = [a + dt / 6 * (b + 2 * c + 2 * d + e) for a, b, c, d, e in zip(x, k1, k2, k3, k4)]
-            return x, jnp.concatenate(x, axis=-1)
-
-        return jax.lax.scan(step, [q, qd], u)[1]
-
-    return jax.jit(rollout)
-
-
 @ROUTES
 def test_raw_functions_in_a_users_loop(closed):
     """``dyn.raw`` is the documented single-state function to vmap: a hand-written RK4 loop over
@@ -192,7 +170,8 @@ def test_raw_functions_in_a_users_loop(closed):
     q0, qd0, _ = random_states(n, b, seed=9)
     u = np.random.default_rng(10).normal(scale=2.0, size=(b, steps, n))
     p = dyn.param_vector()
-    loop = _users_rk4(dyn.raw("forward_dynamics"), p, dt)
+    rk4 = users_rk4(jax.vmap(dyn.raw("forward_dynamics"), in_axes=(0, 0, 0, None)), dt)
+    loop = jax.jit(lambda q, qd, u, p: jnp.concatenate(rk4(q, qd, u, p), axis=-1))  # x = (q, qd) after each step
     mine = loop(jnp.asarray(q0), jnp.asarray(qd0), jnp.asarray(u.transpose(1, 0, 2)), p).transpose(1, 0, 2)
     ref = jaxskid.rollout(dyn, np.concatenate([q0, qd0], axis=1), u, dt, steps).x[:, 1:]
     np.testing.assert_allclose(np.asarray(mine), np.asarray(ref), rtol=0, atol=1e-12)

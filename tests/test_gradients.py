@@ -55,15 +55,20 @@ def _central(f, x, h=1e-6):
     return out.reshape(x.shape)
 
 
+def _check_against_central(loss, args: tuple, names: tuple[str, ...]):
+    """``jax.grad`` of ``loss(*args)`` with respect to each argument against central differences of ``loss`` in
+    that argument alone (both compiled); returns the gradients."""
+    grads = jax.jit(jax.grad(loss, argnums=tuple(range(len(args)))))(*args)
+    compiled = jax.jit(loss)
+    for k, (g, what) in enumerate(zip(grads, names, strict=True)):
+        ref = _central(lambda v: compiled(*args[:k], v, *args[k + 1:]), args[k])
+        np.testing.assert_allclose(g, ref, rtol=1e-6, atol=1e-7 * np.abs(ref).max(), err_msg=what)
+    return grads
+
+
 def test_reverse_mode_matches_central_differences(arm):
     _, dyn, x0, u = arm
-    p = dyn.param_vector()
-    loss = jax.jit(_loss(dyn))
-    grads = jax.jit(jax.grad(_loss(dyn), argnums=(0, 1, 2)))(p, x0, u)
-    refs = (_central(lambda v: loss(v, x0, u), p), _central(lambda v: loss(p, v, u), x0),
-            _central(lambda v: loss(p, x0, v), u))
-    for g, ref, what in zip(grads, refs, ("params", "x0", "controls")):
-        np.testing.assert_allclose(g, ref, rtol=1e-6, atol=1e-7 * np.abs(ref).max(), err_msg=what)
+    _check_against_central(_loss(dyn), (dyn.param_vector(), x0, u), ("params", "x0", "controls"))
 
 
 def test_forward_mode_equals_reverse_mode(arm):
@@ -199,12 +204,7 @@ KP = jnp.asarray([2.0, 1.5, 1.0])
 def test_feedback_gradient_matches_central_differences_and_forward_mode(arm):
     _, dyn, _, _ = arm
     p, dt = dyn.param_vector(), jnp.asarray(DT)
-    loss = jax.jit(_feedback_loss(dyn))
-    grads = jax.jit(jax.grad(_feedback_loss(dyn), argnums=(0, 1, 2)))(p, KP, dt)
-    refs = (_central(lambda v: loss(v, KP, dt), p), _central(lambda v: loss(p, v, dt), KP),
-            _central(lambda v: loss(p, KP, v), dt))
-    for g, ref, what in zip(grads, refs, ("params", "gains", "dt")):
-        np.testing.assert_allclose(g, ref, rtol=1e-6, atol=1e-7 * np.abs(ref).max(), err_msg=what)
+    grads = _check_against_central(_feedback_loss(dyn), (p, KP, dt), ("params", "gains", "dt"))
     forward = jax.jacfwd(_feedback_loss(dyn, "forward"), argnums=(0, 1, 2))(p, KP, dt)  # stage by stage
     for a, b in zip(grads, forward):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12 * np.abs(b).max())

@@ -86,56 +86,59 @@ def pinocchio_states(model, q, qd, qdd):
         yield k, data
 
 
+def pinocchio_frames(case, frames):
+    """``(k, data, i, frame, fid)`` for each state k of ``case`` (``data``: Pinocchio's, evaluated there) and each
+    frame i of ``frames``, ``fid`` its Pinocchio frame id."""
+    _, _, model, q, qd, qdd, _ = case
+    for k, data in pinocchio_states(model, q, qd, qdd):
+        for i, frame in enumerate(frames):
+            yield k, data, i, frame, model.getFrameId(frame)
+
+
 def test_body_twists_and_accelerations(case):
     name, robot, model, q, qd, qdd, ours = case
-    for k, data in pinocchio_states(model, q, qd, qdd):
-        for i, link in enumerate(robot.link_names):
-            fid = model.getFrameId(link)
-            v_loc = pin.getFrameVelocity(model, data, fid, LOCAL)
-            v_lwa = pin.getFrameVelocity(model, data, fid, LWA)
-            a_loc = pin.getFrameAcceleration(model, data, fid, LOCAL)
-            a_lwa = pin.getFrameAcceleration(model, data, fid, LWA)
-            classical = pin.getFrameClassicalAcceleration(model, data, fid, LWA)
-            close(ours["body_twist"][k, i], omega_v(v_loc.vector), f"{name} body_twist {link}")
-            close(ours["hybrid_twist"][k, i], omega_v(v_lwa.vector), f"{name} hybrid_twist {link}")
-            close(ours["body_acceleration"][k, i], omega_v(a_loc.vector), f"{name} body_acceleration {link}")
-            hybrid = omega_v(a_lwa.vector) + np.concatenate([np.zeros(3), np.cross(v_lwa.angular, v_lwa.linear)])
-            close(ours["hybrid_acceleration"][k, i], hybrid, f"{name} hybrid_acceleration {link}")
-            close(ours["hybrid_acceleration"][k, i, 3:], classical.linear, f"{name} classical acceleration {link}")
+    for k, data, i, link, fid in pinocchio_frames(case, robot.link_names):
+        v_loc = pin.getFrameVelocity(model, data, fid, LOCAL)
+        v_lwa = pin.getFrameVelocity(model, data, fid, LWA)
+        a_loc = pin.getFrameAcceleration(model, data, fid, LOCAL)
+        a_lwa = pin.getFrameAcceleration(model, data, fid, LWA)
+        classical = pin.getFrameClassicalAcceleration(model, data, fid, LWA)
+        close(ours["body_twist"][k, i], omega_v(v_loc.vector), f"{name} body_twist {link}")
+        close(ours["hybrid_twist"][k, i], omega_v(v_lwa.vector), f"{name} hybrid_twist {link}")
+        close(ours["body_acceleration"][k, i], omega_v(a_loc.vector), f"{name} body_acceleration {link}")
+        hybrid = omega_v(a_lwa.vector) + np.concatenate([np.zeros(3), np.cross(v_lwa.angular, v_lwa.linear)])
+        close(ours["hybrid_acceleration"][k, i], hybrid, f"{name} hybrid_acceleration {link}")
+        close(ours["hybrid_acceleration"][k, i, 3:], classical.linear, f"{name} classical acceleration {link}")
 
 
 def test_end_effector_twists_and_accelerations(case):
     name, robot, model, q, qd, qdd, ours = case
     assert robot.end_effectors, f"{name}: no end-effector to check"
-    for k, data in pinocchio_states(model, q, qd, qdd):
-        for e, frame in enumerate(robot.end_effectors):
-            fid = model.getFrameId(frame)
-            v_lwa = pin.getFrameVelocity(model, data, fid, LWA)
-            close(ours["ee_body_twist"][k, e], omega_v(pin.getFrameVelocity(model, data, fid, LOCAL).vector), frame)
-            close(ours["ee_hybrid_twist"][k, e], omega_v(v_lwa.vector), frame)
-            close(ours["ee_body_acceleration"][k, e],
-                  omega_v(pin.getFrameAcceleration(model, data, fid, LOCAL).vector), frame)
-            hybrid = omega_v(pin.getFrameAcceleration(model, data, fid, LWA).vector)
-            hybrid[3:] += np.cross(v_lwa.angular, v_lwa.linear)
-            close(ours["ee_hybrid_acceleration"][k, e], hybrid, frame)
+    for k, data, e, frame, fid in pinocchio_frames(case, robot.end_effectors):
+        v_lwa = pin.getFrameVelocity(model, data, fid, LWA)
+        close(ours["ee_body_twist"][k, e], omega_v(pin.getFrameVelocity(model, data, fid, LOCAL).vector), frame)
+        close(ours["ee_hybrid_twist"][k, e], omega_v(v_lwa.vector), frame)
+        close(ours["ee_body_acceleration"][k, e],
+              omega_v(pin.getFrameAcceleration(model, data, fid, LOCAL).vector), frame)
+        hybrid = omega_v(pin.getFrameAcceleration(model, data, fid, LWA).vector)
+        hybrid[3:] += np.cross(v_lwa.angular, v_lwa.linear)
+        close(ours["ee_hybrid_acceleration"][k, e], hybrid, frame)
 
 
 def test_end_effector_jacobians_and_time_variations(case):
     name, robot, model, q, qd, qdd, ours = case
     assert robot.end_effectors, f"{name}: no end-effector to check"
-    for k, data in pinocchio_states(model, q, qd, qdd):
-        for e, frame in enumerate(robot.end_effectors):
-            fid = model.getFrameId(frame)
-            for key, rf in (("body", LOCAL), ("hybrid", LWA)):
-                close(ours[f"{key}_jacobian"][k, e], omega_v(pin.getFrameJacobian(model, data, fid, rf)),
-                      f"{name} {key}_jacobian {frame}")
-                close(ours[f"{key}_jacobian_dot"][k, e],
-                      omega_v(pin.getFrameJacobianTimeVariation(model, data, fid, rf)),
-                      f"{name} {key}_jacobian_dot {frame}")
-            # J qdd + dJ/dt qd is the time derivative of the twist, in both representations
-            for key in ("body", "hybrid"):
-                acc = ours[f"{key}_jacobian"][k, e] @ qdd[k] + ours[f"{key}_jacobian_dot"][k, e] @ qd[k]
-                close(acc, ours[f"ee_{key}_acceleration"][k, e], f"{name} {key} J qdd + dJ qd {frame}")
+    for k, data, e, frame, fid in pinocchio_frames(case, robot.end_effectors):
+        for key, rf in (("body", LOCAL), ("hybrid", LWA)):
+            close(ours[f"{key}_jacobian"][k, e], omega_v(pin.getFrameJacobian(model, data, fid, rf)),
+                  f"{name} {key}_jacobian {frame}")
+            close(ours[f"{key}_jacobian_dot"][k, e],
+                  omega_v(pin.getFrameJacobianTimeVariation(model, data, fid, rf)),
+                  f"{name} {key}_jacobian_dot {frame}")
+        # J qdd + dJ/dt qd is the time derivative of the twist, in both representations
+        for key in ("body", "hybrid"):
+            acc = ours[f"{key}_jacobian"][k, e] @ qdd[k] + ours[f"{key}_jacobian_dot"][k, e] @ qd[k]
+            close(acc, ours[f"ee_{key}_acceleration"][k, e], f"{name} {key} J qdd + dJ qd {frame}")
 
 
 def test_system_jacobian_and_time_variation(case):

@@ -18,9 +18,8 @@ import scipy.stats
 
 import jaxskid
 from jaxskid.apps.identification._identification import random_states
-from pinref import to_pinocchio
 from randrobot import random_robot
-from helpers import FINGERS, PANDA, URDFS as ERD_URDFS, pinocchio_urdf_model
+from helpers import FINGERS, PANDA, URDFS as ERD_URDFS, pinocchio_urdf_model, random_tree_regressor
 
 REPO = Path(__file__).resolve().parents[1]
 URDFS = {
@@ -72,13 +71,7 @@ def test_regressor_times_parameters_is_pinocchio_tau(urdf_robot, name):
 
 def test_regressor_random_trees_with_prismatic_joints():
     """Y pi on random trees (revolute axes off the body origin, prismatic joints) equals Pinocchio's rnea."""
-    rng = np.random.default_rng(7)
-    robot = random_robot(rng, 5, tree=True, prismatic=0.4)
-    dyn = jaxskid.lower(robot, ["regressor"])
-    params = robot.default_params()
-    model, _ = to_pinocchio(robot, params)
-    data = model.createData()
-    pi = jaxskid.standard_params(robot, params)
+    robot, dyn, params, pi, model, data = random_tree_regressor(np.random.default_rng(7), 5, prismatic=0.4)
     q, qd, qdd = random_states(robot.n_dof, 8, seed=2)
     y = np.asarray(dyn.regressor(q, qd, qdd, params))
     for k in range(8):
