@@ -7,6 +7,8 @@ package (installed by the test extra; its files sit under the ``cmeel.prefix`` o
 from __future__ import annotations
 
 import importlib.metadata
+import importlib.util
+import sys
 from pathlib import Path
 
 import jax
@@ -124,3 +126,17 @@ def rel_err(ours, ref, floor: float = 1e-12) -> float:
 def max_rel_err(ours, ref, floor: float = 1e-12) -> float:
     """The largest ``rel_err`` over the leading (state) axis of ``ours`` and ``ref``."""
     return max(rel_err(a, b, floor) for a, b in zip(ours, ref, strict=True))
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def load_example(name: str):
+    """The example ``examples/{name}.py`` as a module, with ``examples/`` on the import path as when it runs as a
+    script (for ``examples/_common.py``)."""
+    if str(EXAMPLES) not in sys.path:
+        sys.path.insert(0, str(EXAMPLES))
+    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -6,28 +6,14 @@ from, statistics (chi-square), statics, a Lyapunov function and a textbook close
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.stats
 import sympy as sp
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
-def load(name):
-    """The example ``examples/{name}.py`` as a module, with ``examples/`` on the import path as when it runs as a
-    script (for ``examples/_common.py``)."""
-    if str(EXAMPLES) not in sys.path:
-        sys.path.insert(0, str(EXAMPLES))
-    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from helpers import load_example as load
 
 
 @pytest.mark.slow

@@ -11,11 +11,10 @@ import warnings
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pinocchio as pin
 import pytest
 
 import jaxskid
-from helpers import ERD, ROBOTS_DIR, URDFS
+from helpers import ERD, ROBOTS_DIR, URDFS, load_example
 
 UR5 = URDFS["ur5"]
 
@@ -186,14 +185,10 @@ def test_an_unstable_step_warns_and_the_step_it_names_settles():
     sticking contact at rest is outside RK4's stability region, the robot chatters and never settles, and the
     rollout says so, naming the rollouts and a step; at that step, measured, every drop settles (the normal forces
     carry the weight within 5 %) and nothing is said."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("quadruped_drop", ROBOTS_DIR.parent / "examples/quadruped_drop.py")
-    example = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(example)
+    example = load_example("quadruped_drop")
     from jaxskid.apps.simulation._contact import NEEDED
 
-    robot = jaxskid.load(example.solo12_urdf(), floating_base=True)
+    robot = jaxskid.load(URDFS["solo12"], floating_base=True)
     dyn = jaxskid.lower(robot, ["forward_dynamics", *NEEDED])
     stand = jnp.asarray(example.STAND)
 

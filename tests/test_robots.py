@@ -13,6 +13,7 @@ import sympy as sp
 import jaxskid
 from jaxskid.testing import closed_form
 from pinref import to_pinocchio, velocity_to_pin
+from helpers import load_example
 
 ROBOTS = sorted((Path(__file__).parents[1] / "robots").glob("*.yaml"))
 QUANTITIES = ["mass_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics", "forward_kinematics"]
@@ -82,12 +83,7 @@ def test_arm_2r_textbook_closed_form():
 
 
 def test_python_description_equals_yaml():
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("python_robot", Path(__file__).parents[1] / "examples" / "python_robot.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    built = module.arm_2r()
+    built = load_example("python_robot").arm_2r()
     loaded = jaxskid.load(Path(__file__).parents[1] / "robots" / "arm_2r.yaml")
     assert built.joint_types == loaded.joint_types and built.parents == loaded.parents
     a = jaxskid.lower(built, ["inverse_dynamics", "forward_kinematics"])
