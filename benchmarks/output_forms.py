@@ -1,12 +1,16 @@
 """How the generated function assembles its result, and how it computes sine and cosine, against speed.
 
-    python benchmarks/output_forms.py [--quantity mass_matrix] [--batch 65536] [--repeats 15] [--markdown PATH]
+    python benchmarks/output_forms.py [--robot panda] [--quantity mass_matrix] [--forms stack,...] [--trig xla,fused]
+                                      [--batch 65536] [--repeats 15] [--markdown PATH]
 
-The same derived program (Panda, 7 DOF, fingers locked, 70 symbolic inertial parameters, float64) is
-printed with each output form and each sine/cosine, compiled the way :class:`jaxskid.Dynamics` compiles
-it, and timed interleaved (medians per state). Forms:
+The same derived program (by default the Panda, 7 DOF, fingers locked, 70 symbolic inertial parameters, float64)
+is printed with each output form and each sine/cosine, compiled the way :class:`jaxskid.Dynamics` compiles
+it, and timed interleaved (medians per state). Each is also timed writing into its last result (the
+column "into the last result": the result donated, as ``out=`` does), which takes the cost of fresh memory
+out. Forms:
 
-- ``stack``: ``jnp.stack([...])`` of the entries;
+- ``stack``: ``jnp.stack([...])`` of the entries, each distinct entry computed once (a symmetric matrix's
+  entries above and below the diagonal are one value);
 - ``flat-where``: one chain ``jnp.where(index == k, value_k, out)`` over the flattened entries;
 - ``nested-where``: one chain per axis on ``lax.broadcasted_iota``;
 - ``broadcast-nested``: the same, with the inputs broadcast to the output's shape first (what jaxskid
@@ -46,9 +50,13 @@ ROOT = Path(__file__).resolve().parents[1]
 ERD = Path(pin.__file__).parents[4] / "share" / "example-robot-data" / "robots"
 URDF = ERD / "panda_description/urdf/panda.urdf"
 LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
+URDFS = {"ur5": ERD / "ur_description/urdf/ur5_robot.urdf", "solo12": ERD / "solo_description/robots/solo12.urdf",
+         "g1": ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf",
+         "g1_hands": ERD / "g1_description/urdf/g1_29dof_with_hand_rev_1_0.urdf"}
+FORMS = ("stack", "flat-where", "nested-where", "broadcast-nested")
 
 
-def variants(eqs, name: str) -> dict[str, tuple[str, bool, bool]]:
+def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tuple[str, bool, bool]]:
     """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, whether to spread, and
     whether reciprocals are divisions instead of Newton's iteration."""
     layout = Layout(eqs, (name,), jax_names)
@@ -64,29 +72,114 @@ def variants(eqs, name: str) -> dict[str, tuple[str, bool, bool]]:
     flat = [f"    _out = jnp.zeros(({size},), {dtype})", f"    _i = jnp.arange({size})"]
     flat += [f"    _out = jnp.where(_i == {k}, {e}, _out)" for k, e in enumerate(outs) if e != "0.0"]
     flat.append(f"    return _out.reshape({shape!r})")
-    stack = [f"    _z = jnp.zeros((), {dtype})",
-             "    return jnp.stack([" + ", ".join(e if e != "0.0" else "_z" for e in outs) + f"]).reshape({shape!r})"]
+    stack, names = [f"    _z = jnp.zeros((), {dtype})"], {"0.0": "_z"}
+    for e in outs:  # each distinct entry once: XLA compiled a repeated expression again
+        if e not in names:
+            names[e] = e if e.isidentifier() else f"_o{len(names)}"
+            if names[e] != e:
+                stack.append(f"    {names[e]} = {e}")
+    stack.append("    return jnp.stack([" + ", ".join(names[e] for e in outs) + f"]).reshape({shape!r})")
     forms = {"stack": (head + "\n".join(stack) + "\n", False), "flat-where": (head + "\n".join(flat) + "\n", False),
              "nested-where": (body, False), "broadcast-nested": (body, True)}
     out = {}
     for form, (src, spread) in forms.items():
-        out[f"{form} / fused"] = (src, spread, False)
-        out[f"{form} / xla"] = (re.sub(r"\b_(sin|cos)\(", r"jnp.\1(", src), spread, False)
-        if "_recip(" in src:  # the pivots of forward dynamics: Newton's iteration against a division
+        if form not in which:
+            continue
+        if "fused" in trig:
+            out[f"{form} / fused"] = (src, spread, False)
+        if "xla" in trig:
+            out[f"{form} / xla"] = (re.sub(r"\b_(sin|cos)\(", r"jnp.\1(", src), spread, False)
+        if "_recip(" in src and "fused" in trig:  # the pivots of forward dynamics: Newton's iteration, a division
             out[f"{form} / fused / division"] = (src, spread, True)
     return out
 
 
+def _robot(name: str):
+    if name == "panda":
+        return jaxskid.load(URDF, lock=LOCK)
+    if name == "quadruped":
+        return jaxskid.load(ROOT / "robots/quadruped_12dof.yaml")
+    return jaxskid.load(URDFS[name])
+
+
+def _compile(src: str, spread: bool, division: bool, label: str, quantity: str, shape, nargs: int):
+    """The form's source executed and jitted as :class:`jaxskid.Dynamics` does, and the same writing into a
+    donated earlier result."""
+    ns = {"jax": jax, "jnp": jnp}
+    exec(HELPERS, ns)  # noqa: S102
+    if "/ fused" in label:  # the multiply-adds on every platform (the helpers use them on CPU only)
+        ns["_sin"] = lambda x, ns=ns: ns["_sincos"](x)[0]
+        ns["_cos"] = lambda x, ns=ns: ns["_sincos"](x)[1]
+    if division:
+        ns["_recip"] = lambda x: 1.0 / x
+    exec(src, ns)  # noqa: S102
+    body, how = ns["_" + quantity], ns["_spread"](shape) if spread else ns["_same"]
+    fn = jax.vmap(lambda *a, body=body, how=how: body(*a, how), in_axes=(*([0] * nargs), None))
+    into = jax.jit(lambda *a: fn(*a[:-1]), donate_argnums=(nargs + 1,), compiler_options=compiler_options())
+    return jax.jit(fn, compiler_options=compiler_options()), into
+
+
+def _timed(fns: dict, states, p, repeats: int, batch: int) -> dict:
+    """Median seconds per state of each form, fresh and into its last result, interleaved."""
+    times = {k: ([], []) for k in fns}
+    last = {k: jnp.array(f(*states, p)) for k, (f, *_rest) in fns.items()}
+    for _ in range(repeats):
+        for label, (f, into, *_rest) in fns.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(f(*states, p))
+            t1 = time.perf_counter()
+            last[label] = jax.block_until_ready(into(*states, p, last[label]))
+            times[label][0].append((t1 - t0) / batch)
+            times[label][1].append((time.perf_counter() - t1) / batch)
+    return {k: (float(np.median(a)), float(np.median(b))) for k, (a, b) in times.items()}
+
+
+def _peer(args, robot, states):
+    """Pinocchio's function for the quantity, seconds per call from Python (median of 5 sweeps), and its name."""
+    if args.robot == "panda":
+        full = pin.buildModelFromUrdf(str(URDF))
+        model = pin.buildReducedModel(full, [full.getJointId(j) for j in LOCK], pin.neutral(full))
+    elif args.robot == "quadruped":  # the same description, built in Pinocchio by the tests' converter
+        sys.path.insert(0, str(ROOT / "tests"))
+        from pinref import to_pinocchio
+
+        model, _ = to_pinocchio(robot, robot.default_params())
+    else:
+        model = pin.buildModelFromUrdf(str(URDFS[args.robot]))
+    data = model.createData()
+    qs = [np.asarray(s[:2000]) for s in states] + [None] * 3
+    call, name = {
+        "mass_matrix": (lambda k: pin.crba(model, data, qs[0][k]), "crba"),
+        "inverse_dynamics": (lambda k: pin.rnea(model, data, qs[0][k], qs[1][k], qs[2][k]), "rnea"),
+        "coriolis_matrix": (lambda k: pin.computeCoriolisMatrix(model, data, qs[0][k], qs[1][k]), "computeCoriolisMatrix"),
+        "mass_matrix_dot": (lambda k: pin.computeCoriolisMatrix(model, data, qs[0][k], qs[1][k]), "computeCoriolisMatrix"),
+        "regressor": (lambda k: pin.computeJointTorqueRegressor(model, data, qs[0][k], qs[1][k], qs[2][k]),
+                      "computeJointTorqueRegressor"),
+        "forward_dynamics": (lambda k: pin.aba(model, data, qs[0][k], qs[1][k], qs[2][k]), "aba"),
+    }[args.quantity]
+    sweeps = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        for k in range(len(qs[0])):
+            call(k)
+        sweeps.append((time.perf_counter() - t0) / len(qs[0]))
+    return float(np.median(sweeps)), name
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quantity", default="mass_matrix", choices=("mass_matrix", "inverse_dynamics", "coriolis_matrix", "forward_dynamics"))
+    ap.add_argument("--quantity", default="mass_matrix", choices=("mass_matrix", "inverse_dynamics", "coriolis_matrix",
+                                                                  "forward_dynamics", "regressor", "mass_matrix_dot"))
     ap.add_argument("--batch", type=int, default=65536)
     ap.add_argument("--repeats", type=int, default=15)
-    ap.add_argument("--robot", default="panda", choices=("panda", "quadruped"),
-                    help="the Panda URDF (fingers locked) or robots/quadruped_12dof.yaml (a 12-DOF tree)")
+    ap.add_argument("--robot", default="panda", choices=("panda", "quadruped", *URDFS),
+                    help="the Panda URDF (fingers locked), robots/quadruped_12dof.yaml (a 12-DOF tree), or "
+                         "example-robot-data's UR5, solo12, G1 (29 DOF) or G1 with hands (43), fixed base")
+    ap.add_argument("--forms", default=",".join(FORMS), help=f"some of {', '.join(FORMS)}")
+    ap.add_argument("--trig", default="fused,xla", help="fused, xla or both")
     doc_tables.add_option(ap)
     args = ap.parse_args(argv)
-    robot = jaxskid.load(URDF, lock=LOCK) if args.robot == "panda" else jaxskid.load(ROOT / "robots/quadruped_12dof.yaml")
+    robot = _robot(args.robot)
     eqs = jaxskid.derive(robot, [args.quantity])
     nargs = len(eqs.quantities[args.quantity].args)
     rng = np.random.default_rng(0)
@@ -94,66 +187,28 @@ def main(argv=None):
     p = jnp.asarray([robot.default_params()[k] for k in eqs.parameters])
     fns, ref = {}, None
     shape = tuple(eqs.quantities[args.quantity].shape)
-    for label, (src, spread, division) in variants(eqs, args.quantity).items():
-        ns = {"jax": jax, "jnp": jnp}
-        exec(HELPERS, ns)  # noqa: S102
-        if "/ fused" in label:  # the multiply-adds on every platform (the helpers use them on CPU only)
-            ns["_sin"] = lambda x, ns=ns: ns["_sincos"](x)[0]
-            ns["_cos"] = lambda x, ns=ns: ns["_sincos"](x)[1]
-        if division:
-            ns["_recip"] = lambda x: 1.0 / x
-        exec(src, ns)  # noqa: S102
-        body, how = ns["_" + args.quantity], ns["_spread"](shape) if spread else ns["_same"]
-        fn = lambda *a, body=body, how=how: body(*a, how)  # noqa: E731
-        f = jax.jit(jax.vmap(fn, in_axes=(*([0] * nargs), None)), compiler_options=compiler_options())
+    forms = variants(eqs, args.quantity, args.forms.split(","), args.trig.split(","))
+    for label, (src, spread, division) in forms.items():
         t0 = time.perf_counter()
+        f, into = _compile(src, spread, division, label, args.quantity, shape, nargs)
         out = np.asarray(f(*states, p))
         kernels = len(re.findall(r"= \S+ fusion\(", f.lower(*states, p).compile().as_text()))
         ref = out if ref is None else ref
         err = float(np.max(np.abs(out - ref) / (1 + np.abs(ref))))
-        fns[label] = (f, time.perf_counter() - t0, kernels, err)
-    times = {k: [] for k in fns}
-    for _ in range(args.repeats):
-        for label, (f, *_rest) in fns.items():
-            t0 = time.perf_counter()
-            jax.block_until_ready(f(*states, p))
-            times[label].append((time.perf_counter() - t0) / args.batch)
-    if args.robot == "panda":
-        model = pin.buildReducedModel(pin.buildModelFromUrdf(str(URDF)),
-                                      [pin.buildModelFromUrdf(str(URDF)).getJointId(j) for j in LOCK],
-                                      pin.neutral(pin.buildModelFromUrdf(str(URDF))))
-    else:  # the same description, built in Pinocchio by the tests' converter
-        sys.path.insert(0, str(ROOT / "tests"))
-        from pinref import to_pinocchio
-
-        model, _ = to_pinocchio(robot, robot.default_params())
-    data = model.createData()
-    qs = [np.asarray(s[:2000]) for s in states]
-    call, peer_name = {
-        "mass_matrix": (lambda k: pin.crba(model, data, qs[0][k]), "crba"),
-        "inverse_dynamics": (lambda k: pin.rnea(model, data, qs[0][k], qs[1][k], qs[2][k]), "rnea"),
-        "coriolis_matrix": (lambda k: pin.computeCoriolisMatrix(model, data, qs[0][k], qs[1][k]), "computeCoriolisMatrix"),
-        "forward_dynamics": (lambda k: pin.aba(model, data, qs[0][k], qs[1][k], qs[2][k]), "aba"),
-    }[args.quantity]
-    peer = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        for k in range(len(qs[0])):
-            call(k)
-        peer.append((time.perf_counter() - t0) / len(qs[0]))
-    peer_t = float(np.median(peer))
-    print(f"{args.quantity}, {args.robot} {robot.n_dof} DOF, {len(eqs.parameters)} symbolic parameters, float64, batch {args.batch}, "
-          f"jax {jax.__version__}; Pinocchio {peer_name} "
-          f"{peer_t * 1e9:.0f} ns per call")
-    print(f"{'form / trig':36s} {'ns/state':>9s} {'x Pinocchio':>12s} {'kernels':>8s} {'compile s':>10s} {'max rel diff':>13s}")
+        fns[label] = (f, into, time.perf_counter() - t0, kernels, err)
+    times = _timed(fns, states, p, args.repeats, args.batch)
+    peer_t, peer_name = _peer(args, robot, states)
+    print(f"{args.quantity}, {args.robot} {robot.n_dof} DOF, {len(eqs.parameters)} symbolic parameters, float64, "
+          f"batch {args.batch}, jax {jax.__version__}; Pinocchio {peer_name} {peer_t * 1e9:.0f} ns per call")
     rows = []
-    for label, (_f, t_compile, kernels, err) in fns.items():
-        t = float(np.median(times[label]))
-        print(f"{label:36s} {t * 1e9:9.1f} {peer_t / t:12.1f} {kernels:8d} {t_compile:10.2f} {err:13.1e}")
-        rows.append([label, doc_tables.duration(t), doc_tables.ratio(peer_t / t), kernels, f"{t_compile:.2f} s",
-                     f"{err:.1e}"])
-    lines = doc_tables.table(["form / trig", "per state", "against Pinocchio", "fused kernels", "compile",
-                              "max relative difference"], rows)
+    for label, (_f, _into, t_compile, kernels, err) in fns.items():
+        t, t_into = times[label]
+        print(f"{label:36s} {t * 1e9:9.1f} ns, into the last result {t_into * 1e9:9.1f} ns, x Pinocchio "
+              f"{peer_t / t:.1f}, {kernels} kernels, compile {t_compile:.2f} s, max rel diff {err:.1e}")
+        rows.append([label, doc_tables.duration(t), doc_tables.duration(t_into), doc_tables.ratio(peer_t / t_into),
+                     kernels, f"{t_compile:.2f} s", f"{err:.1e}"])
+    lines = doc_tables.table(["form / trig", "per state", "into the last result", "against Pinocchio (into)",
+                              "fused kernels", "compile", "max relative difference"], rows)
     doc_tables.write(args.markdown, lines, f"`{args.quantity}` of the {args.robot} ({robot.n_dof} DOF, "
                      f"{len(eqs.parameters)} symbolic parameters), float64, batch {args.batch}, medians of "
                      f"{args.repeats} interleaved repeats; Pinocchio's `{peer_name}` {peer_t * 1e9:.0f} ns per call "
