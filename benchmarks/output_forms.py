@@ -147,7 +147,7 @@ def _peer(args, robot, states):
     else:
         model = pin.buildModelFromUrdf(str(URDFS[args.robot]))
     data = model.createData()
-    qs = [np.asarray(s[:2000]) for s in states] + [None] * 3
+    qs = [np.asarray(s[:2000]) for s in states]
     call, name = {
         "mass_matrix": (lambda k: pin.crba(model, data, qs[0][k]), "crba"),
         "inverse_dynamics": (lambda k: pin.rnea(model, data, qs[0][k], qs[1][k], qs[2][k]), "rnea"),

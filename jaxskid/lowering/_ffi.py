@@ -31,7 +31,6 @@ from typing import NamedTuple
 from .._generated import NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_rk4 import RK4_BACKWARD
-from ._native import CFLAGS
 from ._templates import fill, template
 
 FFI_CFLAGS = ("-fno-math-errno",)
@@ -166,8 +165,6 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
     for k, piece in enumerate(pieces):
         out += ["\n"] * (k > 0) + [piece]
     return out + [f"\nstatic void {name}({params})\n{{\n{workspace}\n" + "\n".join(calls) + "\n}\n"]
-
-
 
 
 def _vector_flags() -> tuple[str, ...]:
