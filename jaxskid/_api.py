@@ -26,6 +26,7 @@ from .model._robot import Robot
 from .model._standard import body_standard_map
 from .runtime._checks import checks_mode
 from .runtime._dynamics import Dynamics
+from .runtime._cuda import enabled as cuda_enabled
 from .runtime._ffi import enabled as native_enabled
 from .runtime._native import NativeDynamics
 
@@ -131,7 +132,8 @@ def lower(
         robot = model if symbolic is None else model.keep_symbolic(symbolic)
         asked, options = resolve(robot, quantities), options or Options()
         names = resolve(robot, [*asked, *(k for n in asked for k in QUANTITIES[n].derivatives)])
-    native_c = native_enabled()  # where no native kernel can run (a GPU, JAXSKID_NATIVE=0), no C is printed
+    # where no kernel can run (JAXSKID_NATIVE=0 on CPU, JAXSKID_CUDA=0 on a GPU, a TPU), no C is printed
+    c_kernels, native_c = native_enabled(), native_enabled() or cuda_enabled()
     key = module_key(robot, names, options, native_c)
     if cache:
         default_compilation_cache()
@@ -142,7 +144,7 @@ def lower(
         native = []
         for library in native_sources(eqs, names, jax_names, first=asked) if native_c else ():
             native.append(library)  # its kernels are the JAX module's programs, printed in C
-            if cache:
+            if cache and c_kernels:
                 # the C compiler works on each library while the next and the JAX module are printed; the
                 # one of the quantities that only serve the requested ones' derivatives at a low priority
                 later = not set(library.quantities) & set(asked)

@@ -96,6 +96,13 @@ class NativeBuild(Protocol):
     def build(self) -> Path:
         """The path of the built library (built once per machine); raises when it cannot be built."""
 
+    def cuda_image(self, name: str, dtype: str, arch: str) -> tuple[bytes, int]:
+        """The compiled CUDA kernel of the quantity ``name`` for ``dtype`` (``"float32"``/``"float64"``) inputs
+        on ``arch`` (``"sm_90"``), and its threads per block (compiled once per machine)."""
+
+    def cuda_handler(self) -> Path:
+        """The path of the library of the XLA FFI handler that launches the CUDA kernels."""
+
 
 def _identity(x):
     return x

@@ -40,7 +40,7 @@ compiler computes each joint's once (the generated vector-Jacobian product repea
 TARGET = "jaxskid_fd_vjp"
 """The exported handler of a library built by :func:`jaxskid.lowering._ffi_build.ffi_library`."""
 
-_PRELUDE = template("ffi_prelude.c")
+_PRELUDE = fill(template("ffi_prelude.c"), METADATA=template("ffi_metadata.h"))
 """What every library's handlers share: the includes, the sizes of the generated C, reading and writing
 float32 or float64 buffers, and the handlers' answer to XLA's metadata query."""
 

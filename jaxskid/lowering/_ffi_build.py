@@ -7,6 +7,7 @@ pieces (:func:`._ffi._chunked`), compiles as several translation units at once, 
 from __future__ import annotations
 
 import concurrent.futures
+import functools
 import os
 import shutil
 import subprocess
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._generated import NativeSource
+from ._cuda import compile_kernel, handler_library, kernel_source, nvrtc, threads
 from ._ffi import FFI_CFLAGS, LANES, Piece, _vector_flags, glue_parts, include_dir
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 from ._templates import fill, template
@@ -34,6 +36,32 @@ class NativeLibrary:
         """The built library's path (:func:`ffi_library`)."""
         root = self.root if self.root is not None else Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
         return ffi_library(self.sources, root)
+
+    def cuda_image(self, name: str, dtype: str, arch: str) -> tuple[bytes, int]:
+        """The CUDA kernel of ``name`` compiled for ``dtype`` and ``arch`` (:mod:`._cuda`), and its threads per
+        block."""
+        source = kernel_source(self.sources, name, dtype)
+        if source is None:
+            raise BuildError(f"{name} has no CUDA kernel (no vector form)")
+        return compile_kernel(source, arch, self._folder() / "cuda"), threads()
+
+    def cuda_handler(self) -> Path:
+        """The handler's library (:func:`._cuda.handler_library`).
+
+        Raises:
+            BuildError: no C compiler or XLA FFI header, or no NVRTC to compile the kernels with.
+        """
+        nvrtc()
+        return handler_library(self._folder() / "cuda")
+
+    def _folder(self) -> Path:
+        return self.root if self.root is not None else _temporary()
+
+
+@functools.cache
+def _temporary() -> Path:
+    """This process's folder for the builds of a lowering without a cache."""
+    return Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
 
 
 def ffi_library(native: NativeSource, root: Path) -> Path:

@@ -21,6 +21,7 @@ import numpy as np
 from .._errors import unknown_names, RequestError, ShapeError
 from .._generated import GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
+from ._cuda import CudaKernel, cuda_kernel, enabled as cuda_enabled
 from ._ffi import enabled as native_enabled, library, log, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
@@ -132,7 +133,10 @@ class Dynamics(QuantitySet):
             if lib.sources.backward:
                 self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
-        self._native_wanted = native_enabled()  # the switch as it was when this Dynamics was made, for its life
+        # the switches as they were when this Dynamics was made, for its life: C kernels on CPU, CUDA on a GPU
+        self._cuda = cuda_enabled()
+        self._native_wanted = native_enabled() or self._cuda
+        self._cuda_kernels: dict[str, CudaKernel | None] = {}
         # the quantity functions, as attributes (the methods of the same name, forward_dynamics, stay)
         self._quantities: dict[str, Quantity] = {
             name: Quantity(name, tuple(m["args"]), tuple(m["shape"]), m["equation"], m["doc"],
@@ -231,10 +235,18 @@ class Dynamics(QuantitySet):
         build = self._native_build.get(name)
         if build is None:
             return None
+        if self._cuda:
+            return self._cuda_target(name, build)
         if name not in self._native_path:
             path = library(build, self.robot_name) if self._native_wanted else None
             self._native_path.update({k: path for k, b in self._native_build.items() if b is build})
         return target(self._native_path[name], name)
+
+    def _cuda_target(self, name: str, build: NativeBuild) -> CudaKernel | None:
+        """The CUDA kernel of ``name`` (:mod:`jaxskid.runtime._cuda`), or None."""
+        if name not in self._cuda_kernels:
+            self._cuda_kernels[name] = cuda_kernel(build, name, self.robot_name)
+        return self._cuda_kernels[name]
 
     def report(self) -> dict[str, str]:
         """How each quantity runs on this machine, ``{name: form}``: ``"native kernel"`` (generated C behind an
@@ -251,9 +263,11 @@ class Dynamics(QuantitySet):
         if name not in self._native_build:
             return "JAX form (a vector: XLA fuses it with its caller)" if name in self._signatures else "JAX form"
         if not self._native_wanted:
-            return "JAX form (native kernels off: JAXSKID_NATIVE=0, or JAX's default backend is not the CPU)"
+            return "JAX form (native kernels off: JAXSKID_NATIVE=0 or JAXSKID_CUDA=0, or a backend without kernels)"
         if self.native_target(name) is not None:
-            return "native kernel"
+            return "CUDA kernel" if self._cuda else "native kernel"
+        if self._cuda:
+            return "JAX form (no CUDA kernel: no vector form in C, or no C compiler or NVRTC; see the log)"
         if self._native_path.get(name) is None:
             return "JAX form (the native library could not be built; see the log)"
         return "JAX form (its generated C has no vector form: it calls a function the kernels lack)"

@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from .._generated import NativeBuild
+from ._cuda import CudaKernel
 
 log = logging.getLogger("jaxskid")
 
@@ -75,15 +76,16 @@ def library(native: NativeBuild | None, label: str) -> str | None:
         return None
 
 
-def _dispatch(native: Callable, fallback: Callable) -> Callable:
-    """``native`` on CPU and ``fallback`` elsewhere, with the derivatives of ``fallback``. On a machine whose
-    devices are all CPUs the fallback is only traced for a derivative."""
-    cpu_only = all(d.platform == "cpu" for d in jax.devices())
+def _dispatch(native: Callable, fallback: Callable, platform: str = "cpu") -> Callable:
+    """``native`` on ``platform`` (``"cpu"`` or ``"cuda"``) and ``fallback`` elsewhere, with the derivatives of
+    ``fallback``. On a machine whose devices are all of that platform the fallback is only traced for a
+    derivative."""
+    only = all(d.platform == ("cpu" if platform == "cpu" else "gpu") for d in jax.devices())
 
     def evaluate(*args):
-        if cpu_only:
+        if only:
             return native(*args)
-        return jax.lax.platform_dependent(*args, cpu=native, default=fallback)
+        return jax.lax.platform_dependent(*args, **{platform: native}, default=fallback)
 
     kernel = jax.custom_jvp(evaluate)
 
@@ -95,8 +97,9 @@ def _dispatch(native: Callable, fallback: Callable) -> Callable:
     return kernel
 
 
-def native_call(target: str, shape, fallback: Callable, vmap_method: str = "broadcast_all") -> Callable:
-    """``f(*arrays, out=None)`` of result shape ``shape``, computed by the registered ``target`` on CPU for
+def native_call(target: str | CudaKernel, shape, fallback: Callable, vmap_method: str = "broadcast_all") -> Callable:
+    """``f(*arrays, out=None)`` of result shape ``shape``, computed by the registered ``target`` on CPU (or the
+    :class:`~jaxskid.runtime._cuda.CudaKernel` ``target`` on a GPU) for
     float32 and float64 (in double), and by ``fallback`` (the same function in JAX) elsewhere, for other dtypes
     (complex steps) and for derivatives. Under ``jax.vmap`` the batch goes into the kernel; ``vmap_method`` is
     ``jax.ffi.ffi_call``'s (``"expand_dims"``: unbatched inputs, the parameters mostly, are not copied per
@@ -109,15 +112,16 @@ def native_call(target: str, shape, fallback: Callable, vmap_method: str = "broa
         dtype = jnp.result_type(*args)
         args = [jnp.asarray(x, dtype) for x in args]
         result = jax.ShapeDtypeStruct(tuple(shape), dtype)
+        name, attributes = (target, {}) if isinstance(target, str) else target.call(dtype)
         if out is None:
-            return jax.ffi.ffi_call(target, result, vmap_method=vmap_method)(*args)
-        aliased = jax.ffi.ffi_call(target, result, vmap_method=vmap_method, input_output_aliases={len(args): 0})
-        return aliased(*args, out.astype(dtype))
+            return jax.ffi.ffi_call(name, result, vmap_method=vmap_method)(*args, **attributes)
+        aliased = jax.ffi.ffi_call(name, result, vmap_method=vmap_method, input_output_aliases={len(args): 0})
+        return aliased(*args, out.astype(dtype), **attributes)
 
     def plain(*args):
         return fallback(*args[:-1])
 
-    kernel = _dispatch(native, plain)
+    kernel = _dispatch(native, plain, "cpu" if isinstance(target, str) else "cuda")
 
     def call(*args, out=None):
         if jnp.result_type(*args) not in (jnp.float32, jnp.float64):
@@ -128,7 +132,7 @@ def native_call(target: str, shape, fallback: Callable, vmap_method: str = "broa
     return call
 
 
-def native_quantity(target: str, shape: tuple[int, ...], fallback: Callable) -> Callable:
+def native_quantity(target: str | CudaKernel, shape: tuple[int, ...], fallback: Callable) -> Callable:
     """``f(*state, p)``, a quantity of one state of shape ``shape`` (:func:`native_call`)."""
     return native_call(target, shape, fallback, vmap_method="expand_dims")
 

@@ -1,0 +1,248 @@
+"""Generated CUDA for a GPU: the matrix-valued quantities as kernels of one state per thread, compiled at run
+time with NVRTC, and the XLA FFI handler that launches them.
+
+On a GPU, XLA compiles a generated JAX program of tens of thousands of scalar operations slowly (minutes for
+the G1's Coriolis matrix) and runs a matrix's assembly as select chains. The program the CPU kernels are
+printed from (:class:`jaxskid._generated.VectorKernel`) is straight-line arithmetic; printed once more over
+doubles, it is a CUDA kernel in which each thread computes one state and writes its row of the result:
+
+* :func:`kernel_source` writes that kernel (the template ``c/cuda_kernel.cu``); the same text compiles as
+  C on the host (:func:`host_library`), which is how the tests check its arithmetic where no GPU is;
+* :func:`compile_kernel` compiles it with NVRTC (``libnvrtc``, from the ``nvidia-cuda-nvrtc`` wheel that
+  JAX's CUDA plugin brings, or a CUDA toolkit) to a cubin for the device's architecture, or to PTX, and
+  keeps the result on disk, keyed by the source, the options and NVRTC's version;
+* :func:`handler_library` builds the one handler all kernels share (``c/cuda_handler.c``): it reads the
+  kernel's number from the call's attributes, loads the module on the call's device once and launches it
+  on XLA's stream, with the CUDA driver API opened at run time (nothing links against CUDA at build time).
+
+Inputs and results are float32 or float64 (one kernel per type, compiled when first used); the arithmetic
+is in double.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import hashlib
+import os
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from .._generated import NativeSource, VectorKernel
+from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
+from ._templates import fill, template
+
+THREADS = 128
+"""Threads per block (``JAXSKID_CUDA_THREADS`` sets another). The kernels of large robots use many registers
+per thread; 128 leaves the compiler its full register budget."""
+
+
+def threads() -> int:
+    """Threads per block: ``JAXSKID_CUDA_THREADS`` or :data:`THREADS`."""
+    return int(os.environ.get("JAXSKID_CUDA_THREADS") or THREADS)
+
+LONG = 5000
+"""Kernels of more statements are assembled at ptxas's ``-O1``: the G1's Coriolis matrix (6,900 statements)
+takes about half as long to build as at ``-O3``."""
+
+_IO = {"float32": "float", "float64": "double"}
+
+
+def kernel_source(native: NativeSource, name: str, io: str = "float64") -> str | None:
+    """The CUDA source of the quantity ``name`` of ``native`` for inputs and result of dtype ``io``
+    (``"float32"`` or ``"float64"``), exporting ``jaxskid_kernel(jaxskid_job)``; None where the quantity has
+    no kernel (no vector form)."""
+    kernel = native.vectors.get(name)
+    entry = next((k for k in native.kernels if k[0] == name), None)
+    if kernel is None or entry is None:
+        return None
+    _, sizes, _, n_out, _ = entry
+    params = ", ".join([*(f"const io_t *__restrict__ {a}" for a in kernel.args), "io_t *__restrict__ out"])
+    call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
+    return "".join([f"#define JAXSKID_IO {_IO[io]}\n",
+                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=native.stem, NAME=name, PARAMS=params, BODY=_body(kernel),
+                         N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
+
+
+def _body(kernel: VectorKernel) -> str:
+    """The statements over doubles, without the outputs that are always zero: the handler zeroes the result
+    first. (Thousands of stores of zero, as in the G1's regressor, multiplied NVRTC's time several times.)"""
+    lines, zeros = [], set(kernel.zeros)
+    for s in kernel.statements:
+        value = fill(s.value, V="D")
+        if s.kind == "unused":
+            lines.append(f"    (void){s.name};\n")
+        elif s.kind == "output":
+            if int(s.name) not in zeros:
+                lines.append(f"    out[{s.name}] = {value};\n")
+        else:
+            lines.append(f"    const double {s.name} = {value};\n")
+    return "".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------- NVRTC
+class NvrtcError(BuildError):
+    """NVRTC is missing or failed to compile a kernel."""
+
+
+_NVRTC: list = []
+_NVRTC_LOCK = threading.Lock()
+
+
+def _nvrtc_candidates() -> list[str]:
+    """Where ``libnvrtc`` may be: ``JAXSKID_NVRTC``, the ``nvidia`` wheels (CUDA 13's ``nvidia/cu13/lib``,
+    CUDA 12's ``nvidia/cuda_nvrtc/lib``), a CUDA toolkit, then the loader's own search."""
+    found = [os.environ["JAXSKID_NVRTC"]] if os.environ.get("JAXSKID_NVRTC") else []
+    roots = [Path(p) for p in sys.path if p] + [Path("/usr/local/cuda/lib64")]
+    for root in roots:
+        for pattern in ("nvidia/cu*/lib/libnvrtc.so*", "nvidia/cuda_nvrtc/lib/libnvrtc.so*", "libnvrtc.so*"):
+            found += sorted(p for p in glob.glob(str(root / pattern)) if "builtins" not in p and ".alt." not in p)
+    return found + ["libnvrtc.so.13", "libnvrtc.so.12", "libnvrtc.so"]
+
+
+def nvrtc() -> ctypes.CDLL:
+    """The NVRTC library, loaded once.
+
+    Raises:
+        NvrtcError: none found (install ``nvidia-cuda-nvrtc``, or set ``JAXSKID_NVRTC`` to its path).
+    """
+    with _NVRTC_LOCK:
+        if not _NVRTC:
+            for path in _nvrtc_candidates():
+                try:
+                    lib = ctypes.CDLL(path)
+                except OSError:
+                    continue
+                lib.nvrtcGetErrorString.restype = ctypes.c_char_p
+                _NVRTC.append(lib)
+                break
+            else:
+                raise NvrtcError("no NVRTC library found (libnvrtc.so); install the nvidia-cuda-nvrtc wheel "
+                                 "(JAX's CUDA plugin brings it) or set JAXSKID_NVRTC to its path")
+        return _NVRTC[0]
+
+
+def nvrtc_version() -> str:
+    major, minor = ctypes.c_int(), ctypes.c_int()
+    nvrtc().nvrtcVersion(ctypes.byref(major), ctypes.byref(minor))
+    return f"{major.value}.{minor.value}"
+
+
+def _check(lib, status: int, what: str, log: str = "") -> None:
+    if status != 0:
+        raise NvrtcError(f"NVRTC {what} failed: {lib.nvrtcGetErrorString(status).decode()}"
+                         + (f"\n{log[-3000:]}" if log else ""))
+
+
+def compile_kernel(source: str, arch: str = "sm_90", root: Path | None = None) -> bytes:
+    """The compiled ``source``: a cubin for a real architecture (``"sm_90"``), or PTX for a virtual one
+    (``"compute_90"``: what the tests check where no GPU is), read from ``root`` when this source, target and
+    NVRTC were compiled before. Kernels of more than :data:`LONG` statements are assembled at ptxas's ``-O1``
+    (``JAXSKID_PTXAS_O`` sets the level for all).
+
+    Raises:
+        NvrtcError: no NVRTC, or the compiler rejected the source (the message ends with its log).
+    """
+    level = os.environ.get("JAXSKID_PTXAS_O") or ("1" if source.count("\n") > LONG else "3")
+    options = [f"--gpu-architecture={arch}", "--std=c++17", "-Xptxas", f"-O{level}"]
+    key = hashlib.sha256("\0".join([source, *options, nvrtc_version()]).encode()).hexdigest()[:32]
+    cubin = arch.startswith("sm_")
+    path = root / f"{key}.{'cubin' if cubin else 'ptx'}" if root is not None else None
+    if path is not None and path.exists():
+        return path.read_bytes()
+    image = _nvrtc_compile(source, options)
+    if path is not None:
+        root.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_bytes(image)
+        os.replace(tmp, path)
+    return image
+
+
+def _nvrtc_compile(source: str, options: list[str]) -> bytes:
+    lib = nvrtc()
+    prog = ctypes.c_void_p()
+    _check(lib, lib.nvrtcCreateProgram(ctypes.byref(prog), source.encode(), b"jaxskid.cu", 0, None, None), "setup")
+    try:
+        opts = (ctypes.c_char_p * len(options))(*(o.encode() for o in options))
+        status = lib.nvrtcCompileProgram(prog, len(options), opts)
+        size = ctypes.c_size_t()
+        lib.nvrtcGetProgramLogSize(prog, ctypes.byref(size))
+        log = ctypes.create_string_buffer(size.value)
+        lib.nvrtcGetProgramLog(prog, log)
+        _check(lib, status, "compilation", log.value.decode(errors="replace"))
+        cubin = options[0].startswith("--gpu-architecture=sm_")
+        get_size, get = (lib.nvrtcGetCUBINSize, lib.nvrtcGetCUBIN) if cubin else (lib.nvrtcGetPTXSize, lib.nvrtcGetPTX)
+        _check(lib, get_size(prog, ctypes.byref(size)), "output size")
+        image = ctypes.create_string_buffer(size.value)
+        _check(lib, get(prog, image), "output")
+        return image.raw
+    finally:
+        lib.nvrtcDestroyProgram(ctypes.byref(prog))
+
+
+# ---------------------------------------------------------------------------------------------- builds
+def _shared_library(name: str, source: str, root: Path, flags: tuple[str, ...] = (), libs: tuple[str, ...] = ()) -> Path:
+    """``source`` built as the shared library ``lib<name>.so`` under ``root`` (keyed by everything that goes
+    in; built once per machine)."""
+    cc = _compiler()
+    key = _key("cuda", cc, " ".join(CFLAGS), *flags, *libs, source)
+    final = root / key[:24] / f"lib{name}.so"
+    if not final.exists():
+        tmp = _sources(root, name, "", source)
+        out = tmp / final.name
+        _compile([*cc.split(), *CFLAGS, *flags, "-shared", "-o", str(out), str(tmp / f"{name}.c"), *libs], tmp)
+        _install(tmp, out, final)
+    return final
+
+
+def handler_library(root: Path) -> Path:
+    """The shared library of the handler ``jaxskid_cuda_quantity`` and of ``jaxskid_cuda_register``, built
+    with the system C compiler once per machine under ``root``.
+
+    Raises:
+        BuildError: no C compiler, no XLA FFI header, or the build failed.
+    """
+    from ._ffi import include_dir
+
+    return _shared_library("jaxskid_cuda", fill(template("cuda_handler.c"), JOB=template("cuda_job.h"),
+                                                METADATA=template("ffi_metadata.h")), root, (f"-I{include_dir()}",),
+                           ("-ldl", "-lpthread"))
+
+
+def host_library(source: str, root: Path) -> ctypes.CDLL:
+    """A kernel's source built as C for the host: ``jaxskid_host(const jaxskid_job *)`` loops over the states,
+    with the same arithmetic and indexing as the GPU's threads (at ``-O0``: a check, built fast)."""
+    return ctypes.CDLL(str(_shared_library("jaxskid_cuda_host", source, root, ("-O0", "-fno-math-errno"), ("-lm",))))
+
+
+class HostJob(ctypes.Structure):
+    """``jaxskid_job`` of ``c/cuda_kernel.cu`` and ``c/cuda_handler.c``."""
+
+    _fields_ = [("inputs", ctypes.c_void_p * 8), ("stride", (ctypes.c_longlong * 6) * 8),
+                ("dims", ctypes.c_longlong * 6), ("nb", ctypes.c_longlong), ("batch", ctypes.c_longlong),
+                ("out", ctypes.c_void_p)]
+
+
+def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int) -> None:
+    """Run a :func:`host_library` kernel on contiguous NumPy arrays as the handler runs it on a GPU: ``out``'s
+    leading axes (all but its last ``out_rank``) are the batch, input i's last ``cores[i]`` axes hold one
+    state's entries and its leading axes broadcast against the batch (right-aligned; an axis of 1, or a missing
+    one, is shared). Zeroes ``out``, then writes it."""
+    job, nb = HostJob(), out.ndim - out_rank
+    out[...] = 0
+    for d in range(nb):
+        job.dims[d] = out.shape[d]
+    for i, (x, core) in enumerate(zip(inputs, cores)):
+        job.inputs[i] = x.ctypes.data
+        lead, step = x.shape[:x.ndim - core], int(np.prod(x.shape[x.ndim - core:], dtype=np.int64))
+        for d in range(nb - 1, -1, -1):
+            k = d - (nb - len(lead))
+            extent = lead[k] if k >= 0 else 1
+            job.stride[i][d] = 0 if extent == 1 else step
+            step *= extent
+    job.nb, job.batch, job.out = nb, int(np.prod(out.shape[:nb], dtype=np.int64)), out.ctypes.data
+    lib.jaxskid_host(ctypes.byref(job))

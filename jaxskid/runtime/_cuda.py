@@ -1,0 +1,105 @@
+"""CUDA kernels in XLA programs on a GPU: the matrix-valued quantities as the generated kernels of
+:mod:`jaxskid.lowering._cuda`, one state per thread, behind one XLA FFI handler.
+
+:class:`CudaKernel` is the target :func:`jaxskid.runtime._ffi.native_call` calls on a GPU where on CPU it calls a
+C kernel: the same arguments, batch broadcasting and ``out=``. Each kernel is compiled with NVRTC for the
+device's architecture when a program first uses it with a dtype (float32 or float64), kept on disk, and
+registered with the handler once per process.
+
+``JAXSKID_CUDA=0`` turns it off (the JAX form runs); it is off where JAX's default backend is not a CUDA GPU.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import os
+import threading
+
+import jax
+import numpy as np
+
+from .._generated import NativeBuild
+
+TARGET = "jaxskid_cuda_quantity"
+log = logging.getLogger("jaxskid")
+_WARNED: set[str] = set()
+_HANDLER: list = []
+_LOCK = threading.Lock()
+
+
+def enabled() -> bool:
+    """Whether CUDA kernels may be used: ``JAXSKID_CUDA`` is not ``0``/``false``/``off``/``no``, and JAX's
+    default backend is a CUDA GPU."""
+    if os.environ.get("JAXSKID_CUDA", "1").strip().lower() in ("0", "false", "off", "no"):
+        return False
+    if jax.default_backend() != "gpu":
+        return False
+    version = str(getattr(jax.devices()[0].client, "platform_version", "")).lower()
+    return "rocm" not in version and "hip" not in version
+
+
+def _handler(build: NativeBuild) -> ctypes.CDLL:
+    """The handler's library, built and registered with XLA for the CUDA platform once per process."""
+    with _LOCK:
+        if not _HANDLER:
+            lib = ctypes.CDLL(str(build.cuda_handler()))
+            lib.jaxskid_cuda_register.restype = ctypes.c_int64
+            lib.jaxskid_cuda_register.argtypes = [ctypes.c_char_p, ctypes.c_int64, ctypes.c_int,
+                                                  ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int64),
+                                                  ctypes.c_int64, ctypes.c_int64, ctypes.c_int, ctypes.c_int]
+            jax.ffi.register_ffi_target(TARGET, jax.ffi.pycapsule(lib.jaxskid_cuda_quantity), platform="CUDA")
+            _HANDLER.append(lib)
+        return _HANDLER[0]
+
+
+def architecture() -> str:
+    """The default device's real architecture, ``"sm_90"`` for compute capability 9.0."""
+    capability = str(getattr(jax.devices()[0], "compute_capability", "9.0"))
+    return "sm_" + capability.replace(".", "")
+
+
+class CudaKernel:
+    """The CUDA kernel of the quantity ``name`` of a native library (its sources, and the builds of its
+    kernels and of the handler: :class:`jaxskid._generated.NativeBuild`)."""
+
+    def __init__(self, build: NativeBuild, name: str):
+        self.build, self.name = build, name
+        self._ids: dict[str, int] = {}
+
+    def __repr__(self) -> str:
+        return f"CudaKernel({self.build.sources.stem}.{self.name})"
+
+    def call(self, dtype) -> tuple[str, dict]:
+        """The FFI target and attributes of a call on ``dtype`` states (compiled and registered on the first)."""
+        key = np.dtype(dtype).name
+        if key not in self._ids:
+            lib = _handler(self.build)
+            image, threads = self.build.cuda_image(self.name, key, architecture())
+            _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
+            sizes_c, cores_c = (ctypes.c_int64 * len(sizes))(*sizes), (ctypes.c_int64 * len(cores))(*cores)
+            zero_first = int(bool(self.build.sources.vectors[self.name].zeros))
+            kid = lib.jaxskid_cuda_register(image, len(image), len(sizes), sizes_c, cores_c, n_out, out_rank, threads,
+                                            zero_first)
+            if kid < 0:
+                raise RuntimeError(f"jaxskid: the CUDA kernel of {self.name} could not be registered")
+            self._ids[key] = kid
+        return TARGET, {"kernel": np.int64(self._ids[key])}
+
+
+def cuda_kernel(build: NativeBuild, name: str, label: str) -> CudaKernel | None:
+    """The kernel of ``name``, or None where it has none (not a kernel of the library, or no vector form) or
+    where the handler cannot be built or NVRTC is missing (logged once per ``label``, a robot's name: the JAX
+    form serves)."""
+    sources = build.sources
+    if sources.vectors.get(name) is None or not any(k[0] == name for k in sources.kernels):
+        return None
+    try:
+        _handler(build)
+    except Exception as exc:  # no C compiler, no NVRTC, no FFI header
+        if label not in _WARNED:
+            _WARNED.add(label)
+            log.warning("jaxskid: CUDA kernels for %s unavailable (%s); using the JAX form", label,
+                        " ".join(str(exc).split())[:300])
+        return None
+    return CudaKernel(build, name)

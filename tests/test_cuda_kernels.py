@@ -1,0 +1,83 @@
+"""The CUDA kernels of the matrix-valued quantities (jaxskid/lowering/_cuda.py), where no GPU is: their source
+compiles with NVRTC (to PTX, for float64 and float32 inputs), the XLA FFI handler that launches them builds,
+and the same source built as C for the host computes what the JAX form computes, at 1e-12, over batches with
+two axes and parameters shared by all states (the indexing each GPU thread does)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxskid
+from helpers import ERD, load
+from jaxskid.lowering import _cuda
+
+QUANTITIES = ["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics", "mass_matrix_dot"]
+G1 = ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf"
+
+
+def _kernels(dyn):
+    """``{quantity: (native source, its kernel entry)}`` for every quantity of ``dyn`` with a CUDA kernel."""
+    found = {}
+    for build in {id(b): b for b in dyn._native_build.values()}.values():
+        for entry in build.sources.kernels:
+            if _cuda.kernel_source(build.sources, entry[0]) is not None:
+                found[entry[0]] = (build.sources, entry)
+    return found
+
+
+def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), reference=None):
+    """Each quantity of ``names``: its kernel compiles to PTX for each dtype of ``io``, and built for the host it
+    agrees at 1e-12 with the JAX form (or with ``reference``, a function of the batch)."""
+    kernels = _kernels(dyn)
+    assert set(names) <= set(kernels)
+    p = np.asarray(dyn.param_vector())
+    for name in names:
+        sources, (_, sizes, cores, n_out, out_rank) = kernels[name]
+        args, shape = dyn.signature(name)
+        for dtype in io:
+            ptx = _cuda.compile_kernel(_cuda.kernel_source(sources, name, dtype), "compute_90").decode()
+            assert ".entry jaxskid_kernel" in ptx and ".f64" in ptx
+        host = _cuda.host_library(_cuda.kernel_source(sources, name), tmp_path)
+        # a batch of (2, 3): q varies along both axes, the other state arguments along the second only
+        states = [rng.uniform(-1, 1, (2, 3, dyn.argument_shape(a)[0]) if k == 0 else (3, dyn.argument_shape(a)[0]))
+                  for k, a in enumerate(args)]
+        out = np.full((2, 3, *shape), np.nan)
+        _cuda.run_on_host(host, [*states, p], cores, out, out_rank)
+        if reference is None:
+            inner = jax.vmap(dyn.raw(name), in_axes=(*[0] * len(args), None))
+            reference_of = jax.vmap(inner, in_axes=(0, *[None] * (len(args) - 1), None))
+            want = np.asarray(reference_of(*(jnp.asarray(x) for x in states), jnp.asarray(p)))
+        else:
+            want = np.asarray(reference(*np.broadcast_arrays(*(x if x.ndim == 3 else x[None] for x in states))[:len(args)]))
+        np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=name)
+
+
+def test_handler_builds(tmp_path):
+    """The handler's library builds against jaxlib's FFI header and exports the handler and the registration."""
+    import ctypes
+
+    lib = ctypes.CDLL(str(_cuda.handler_library(tmp_path)))
+    assert lib.jaxskid_cuda_quantity and lib.jaxskid_cuda_register
+
+
+def test_panda(tmp_path):
+    dyn = jaxskid.lower(load("panda7"), QUANTITIES)
+    _check(dyn, QUANTITIES, tmp_path, np.random.default_rng(0))
+
+
+def test_solo12_floating_base(tmp_path):
+    """solo12 on a free-flyer base: a configuration of 7 + n entries, velocities of 6 + n."""
+    names = ["mass_matrix", "coriolis_matrix", "forward_dynamics"]
+    dyn = jaxskid.lower(jaxskid.load(ERD / "solo_description/robots/solo12.urdf", floating_base=True), names)
+    _check(dyn, names, tmp_path, np.random.default_rng(1))
+
+
+@pytest.mark.slow
+def test_g1(tmp_path):
+    """The 29-DOF humanoid (the lowering of test_native_quantities' G1 test, so a run derives it once). Its
+    Coriolis matrix against the CPU's C kernel (which that test checks against Pinocchio): XLA takes long to
+    compile its JAX form."""
+    dyn = jaxskid.lower(jaxskid.read_urdf(G1), quantities=["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"])
+    _check(dyn, ["mass_matrix", "regressor", "forward_dynamics"], tmp_path, np.random.default_rng(2), io=("float64",))
+    _check(dyn, ["coriolis_matrix"], tmp_path, np.random.default_rng(3), io=("float64",), reference=dyn.coriolis_matrix)
