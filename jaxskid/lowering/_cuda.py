@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._generated import NativeSource, VectorKernel
+from .._generated import NativeSource
+from ._ffi import Piece, _chunked
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 from ._templates import fill, template
 
@@ -44,9 +45,15 @@ def threads() -> int:
     """Threads per block: ``JAXSKID_CUDA_THREADS`` or :data:`THREADS`."""
     return int(os.environ.get("JAXSKID_CUDA_THREADS") or THREADS)
 
-LONG = 5000
-"""Kernels of more statements are assembled at ptxas's ``-O1``: the G1's Coriolis matrix (6,900 statements)
-takes about half as long to build as at ``-O3``."""
+LONG = 1024
+"""A kernel of more statements is split into device functions of :data:`CHUNK` statements (not inlined), which
+pass the values that cross a boundary through a per-thread workspace: ptxas's register allocation, like GCC's,
+takes time superlinear in a function's length, and the pieces of the G1's Coriolis matrix and regressor build
+several times faster than one function (:func:`jaxskid.lowering._ffi._chunked`, as for the CPU).
+``JAXSKID_CUDA_LONG`` sets another length."""
+
+CHUNK = 512
+"""Statements per piece of a long kernel (``JAXSKID_CUDA_CHUNK`` sets another)."""
 
 _IO = {"float32": "float", "float64": "double"}
 
@@ -60,27 +67,13 @@ def kernel_source(native: NativeSource, name: str, io: str = "float64") -> str |
     if kernel is None or entry is None:
         return None
     _, sizes, _, n_out, _ = entry
-    params = ", ".join([*(f"const io_t *__restrict__ {a}" for a in kernel.args), "io_t *__restrict__ out"])
+    long, chunk = (int(os.environ.get(f"JAXSKID_CUDA_{k}") or d) for k, d in (("LONG", LONG), ("CHUNK", CHUNK)))
+    functions = _chunked("body", kernel, "D", set(kernel.zeros), io="io_t", long=long, chunk_size=chunk, huge=None)
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n",
-                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=native.stem, NAME=name, PARAMS=params, BODY=_body(kernel),
+                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=native.stem, NAME=name,
+                         FUNCTIONS="".join(f.text() if isinstance(f, Piece) else f for f in functions),
                          N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
-
-
-def _body(kernel: VectorKernel) -> str:
-    """The statements over doubles, without the outputs that are always zero: the handler zeroes the result
-    first. (Thousands of stores of zero, as in the G1's regressor, multiplied NVRTC's time several times.)"""
-    lines, zeros = [], set(kernel.zeros)
-    for s in kernel.statements:
-        value = fill(s.value, V="D")
-        if s.kind == "unused":
-            lines.append(f"    (void){s.name};\n")
-        elif s.kind == "output":
-            if int(s.name) not in zeros:
-                lines.append(f"    out[{s.name}] = {value};\n")
-        else:
-            lines.append(f"    const double {s.name} = {value};\n")
-    return "".join(lines)
 
 
 # ---------------------------------------------------------------------------------------------- NVRTC
@@ -140,14 +133,13 @@ def _check(lib, status: int, what: str, log: str = "") -> None:
 def compile_kernel(source: str, arch: str = "sm_90", root: Path | None = None) -> bytes:
     """The compiled ``source``: a cubin for a real architecture (``"sm_90"``), or PTX for a virtual one
     (``"compute_90"``: what the tests check where no GPU is), read from ``root`` when this source, target and
-    NVRTC were compiled before. Kernels of more than :data:`LONG` statements are assembled at ptxas's ``-O1``
-    (``JAXSKID_PTXAS_O`` sets the level for all).
+    NVRTC were compiled before. ``JAXSKID_PTXAS_O`` sets ptxas's optimisation level (3).
 
     Raises:
         NvrtcError: no NVRTC, or the compiler rejected the source (the message ends with its log).
     """
-    level = os.environ.get("JAXSKID_PTXAS_O") or ("1" if source.count("\n") > LONG else "3")
-    options = [f"--gpu-architecture={arch}", "--std=c++17", "-Xptxas", f"-O{level}"]
+    level = os.environ.get("JAXSKID_PTXAS_O") or "3"
+    options = [f"--gpu-architecture={arch}", "--std=c++17", "-default-device", "-Xptxas", f"-O{level}"]
     key = hashlib.sha256("\0".join([source, *options, nvrtc_version()]).encode()).hexdigest()[:32]
     cubin = arch.startswith("sm_")
     path = root / f"{key}.{'cubin' if cubin else 'ptx'}" if root is not None else None

@@ -116,37 +116,41 @@ such a quantity. Shorter bodies run slower at ``-Og`` (the G1's and the Panda's 
 short anyway."""
 
 
-def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset()) -> list[str | Piece]:
-    """The function ``name`` of ``kernel``, split into functions of :data:`CHUNK` statements that pass the
-    values later pieces read through a workspace; the outputs ``zeros`` are not assigned. GCC's register
-    allocator takes time quadratic in a function's length (the G1's Coriolis matrix, 4,300 statements: 2.7
-    minutes at ``-O1``); pieces of a few hundred statements compile in linear time, and only the values that
-    cross a boundary go to memory."""
-    params = ", ".join([*(f"const {vec} *{a}" for a in kernel.args), f"{vec} *out"])
+def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset(), io: str | None = None,
+             long: int = LONG, chunk_size: int = CHUNK, huge: int | None = HUGE) -> list[str | Piece]:
+    """The function ``name`` of ``kernel``, split into functions of ``chunk_size`` statements (:data:`CHUNK`)
+    that pass the values later pieces read through a workspace, where it has more than ``long``; the outputs
+    ``zeros`` are not assigned. GCC's register allocator takes time quadratic in a function's length (the G1's
+    Coriolis matrix, 4,300 statements: 2.7 minutes at ``-O1``); pieces of a few hundred statements compile in
+    linear time, and only the values that cross a boundary go to memory. ``io``: the type the inputs and the
+    output point to (``vec`` where None); ``huge``: the length from which GCC builds the pieces at ``-Og``
+    (None: never)."""
+    ptr = io or vec
+    params = ", ".join([*(f"const {ptr} *{a}" for a in kernel.args), f"{ptr} *out"])
     statements = kernel.statements
     kept = [s.kind != "output" or int(s.name) not in zeros for s in statements]
-    if len(statements) <= LONG:
+    if len(statements) <= long:
         body = "".join(_line(s, vec) + "\n" for s, keep in zip(statements, kept) if keep)
         return [f"static void {name}({params})\n{{\n{body}}}\n"]
     defined: dict[str, int] = {}  # variable -> the chunk defining it
     inputs: dict[str, str] = {}  # variable -> its definition, for the reads of an input entry (read again)
     for k, s in enumerate(statements):
         if s.kind in ("input", "define"):
-            defined[s.name] = k // CHUNK
+            defined[s.name] = k // chunk_size
             if s.kind == "input":
                 inputs[s.name] = _line(s, vec)
     slots: dict[str, int] = {}
     for k, s in enumerate(statements):
         for v in s.reads:
-            if defined[v] < k // CHUNK and v not in slots and v not in inputs:
+            if defined[v] < k // chunk_size and v not in slots and v not in inputs:
                 slots[v] = len(slots)
     args = ", ".join([*kernel.args, "out"])
     pieces, calls = [], []
-    for c in range(0, len(statements), CHUNK):
-        chunk = range(c, min(c + CHUNK, len(statements)))
+    for c in range(0, len(statements), chunk_size):
+        chunk = range(c, min(c + chunk_size, len(statements)))
         # inputs (no slot) by name: an order that a set's (which varies with each process's string hashes) would
         # give makes a new source, and a new build, in every process
-        needed = sorted({v for k in chunk for v in statements[k].reads if defined[v] < c // CHUNK},
+        needed = sorted({v for k in chunk for v in statements[k].reads if defined[v] < c // chunk_size},
                         key=lambda v: (slots.get(v, -1), v))
         text = [inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed]
         for k in chunk:
@@ -155,11 +159,11 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
                 text.append(_line(s, vec))
             if s.kind == "define" and s.name in slots:
                 text.append(f"    w[{slots[s.name]}] = {s.name};")
-        piece = f"{name}_{c // CHUNK}"
+        piece = f"{name}_{c // chunk_size}"
         pieces.append(Piece(piece, f"{params}, {vec} *w", "{\n" + "\n".join(text) + "\n}\n"))
         calls.append(f"    {piece}({args}, w);")
     workspace = f"    {vec} w[{max(len(slots), 1)}];"
-    if len(statements) > HUGE:
+    if huge is not None and len(statements) > huge:
         pieces = [template("og_begin.h").rstrip("\n"), *pieces, template("og_end.h").rstrip("\n")]
     out: list[str | Piece] = []
     for k, piece in enumerate(pieces):
