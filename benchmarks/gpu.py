@@ -85,7 +85,7 @@ LOWERINGS = {  # name: (URDF copy, floating base, quantities); every inertial pa
     "z1": ("z1.urdf", False, ("forward_dynamics",)),
     "z1_all": ("z1.urdf", False, QUANTITIES),
 }
-SECTIONS = {"quantities": ("g1", "g1_hands"), "agreement": ("z1_all", "g1"), "adam": ("g1_floating",),
+SECTIONS = {"quantities": ("g1_hands", "g1"), "agreement": ("z1_all", "g1"), "adam": ("g1_floating",),
             "rollout": ("z1",), "variants": ("g1",), "jax": ("g1", "g1_hands")}
 SHARES = "0.36,0.46,0.58,0.80,0.90,0.98"
 """The default ``--shares``: the fraction of the budget after which each section (in the order of
@@ -94,9 +94,9 @@ SLOW = {("g1", "coriolis_matrix"), ("g1_hands", "coriolis_matrix"), ("g1_hands",
 """The cases whose JAX form XLA compiles for minutes on a GPU: run after every section."""
 AGREEMENT = {"z1_all": QUANTITIES, "g1": ("mass_matrix", "forward_dynamics", "regressor", "mass_matrix_dot")}
 """The quantities whose kernels ``agreement`` compares with the JAX form computed on the CPU."""
-VARIANTS = {"ptxas -O1": {"JAXSKID_PTXAS_O": "1"}, "not split": {"JAXSKID_CUDA_LONG": "1000000"},
-            "pieces of 2048": {"JAXSKID_CUDA_CHUNK": "2048"}, "256 threads": {"JAXSKID_CUDA_THREADS": "256"},
-            "64 threads": {"JAXSKID_CUDA_THREADS": "64"}}
+VARIANTS = {"ptxas -O3": {"JAXSKID_PTXAS_O": "3"}, "256 threads": {"JAXSKID_CUDA_THREADS": "256"},
+            "64 threads": {"JAXSKID_CUDA_THREADS": "64"}, "not split": {"JAXSKID_CUDA_LONG": "1000000"},
+            "pieces of 2048": {"JAXSKID_CUDA_CHUNK": "2048"}}
 """The kernel builds ``variants`` measures against the default (:mod:`jaxskid.lowering._cuda`'s settings)."""
 SLOW_NEEDS = 120.0
 """Seconds left that a slow case needs to start."""
@@ -294,7 +294,7 @@ def agreement(log: Log, urdf_dir: Path) -> None:
         for quantity in names:
             ids = {"section": "agreement", "robot": name, "quantity": quantity, "runs": report.get(quantity)}
             if dyn is None:
-                unlowered(log, "agreement", **ids)
+                unlowered(log, **ids)
                 continue
 
             def measure(quantity=quantity):
@@ -318,10 +318,11 @@ def variants(log: Log, urdf_dir: Path, batch: int) -> None:
         try:
             dyn = lowered(log, urdf_dir, "g1", "cuda", "variants")
             for quantity in ("mass_matrix", "coriolis_matrix"):
-                ids = {"section": "variants", "robot": "g1", "quantity": quantity, "variant": variant}
+                ids = {"robot": "g1", "quantity": quantity, "variant": variant}
                 if dyn is None:
                     unlowered(log, "variants", **ids)
                     continue
+                ids["section"] = "variants"
                 args = states(STATES[quantity], batch, dyn.n_dof)
                 case(log, log.fits("variants"),
                      lambda fn=getattr(dyn, quantity), a=args: dict(zip(("first_s", "per_state_ns"),

@@ -88,6 +88,12 @@ class NativeSource:
         return tuple(k.name for k in self.kernels)
 
 
+GPU_ONLY = frozenset({"inverse_dynamics", "gravity_torques", "coriolis_torques"})
+"""Vector quantities whose kernel serves on a GPU only: on CPU XLA fuses their programs with the caller's (the
+CPU's C library leaves them out); on a GPU, XLA took far longer to compile their programs than NVRTC the
+kernels."""
+
+
 class NativeBuild(Protocol):
     """A native library the runtime may use (:class:`jaxskid.lowering._ffi_build.NativeLibrary`)."""
 

@@ -12,7 +12,8 @@ import jaxskid
 from helpers import ERD, load
 from jaxskid.lowering import _cuda
 
-QUANTITIES = ["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics", "mass_matrix_dot"]
+QUANTITIES = ["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics", "mass_matrix_dot", "inverse_dynamics",
+              "gravity_torques"]
 G1 = ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf"
 
 

@@ -19,7 +19,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
-from .._generated import NativeKernel, NativeSource, Statement, VectorKernel
+from .._generated import GPU_ONLY, NativeKernel, NativeSource, Statement, VectorKernel
 from ._common import Program, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 from ._printing import FastArithmetic
 
@@ -193,9 +193,10 @@ takes longest to compile (no XLA compile), and the pullbacks, long programs that
 def native_quantities(eqs, names: Sequence[str]) -> tuple[str, ...]:
     """The quantities of ``names`` that get a native kernel on CPU (:mod:`jaxskid.lowering._ffi`): those
     with matrix-valued results (M, C, the regressor, Jacobians, time derivatives, poses), whose many entries
-    XLA compiles into programs whose cost grows faster than the arithmetic, and :data:`NATIVE_VECTORS`.
-    Other vectors stay in JAX, where XLA fuses them with the caller's program."""
-    return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2 or n in NATIVE_VECTORS)
+    XLA compiles into programs whose cost grows faster than the arithmetic, and :data:`NATIVE_VECTORS`; and
+    :data:`jaxskid._generated.GPU_ONLY`, whose kernel only a GPU runs. Other vectors stay in JAX, where XLA
+    fuses them with the caller's program."""
+    return tuple(n for n in names if len(eqs.quantities[n].shape) >= 2 or n in NATIVE_VECTORS or n in GPU_ONLY)
 
 
 def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequence[str] = ()) -> Iterator[NativeSource]:

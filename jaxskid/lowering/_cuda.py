@@ -133,12 +133,13 @@ def _check(lib, status: int, what: str, log: str = "") -> None:
 def compile_kernel(source: str, arch: str = "sm_90", root: Path | None = None) -> bytes:
     """The compiled ``source``: a cubin for a real architecture (``"sm_90"``), or PTX for a virtual one
     (``"compute_90"``: what the tests check where no GPU is), read from ``root`` when this source, target and
-    NVRTC were compiled before. ``JAXSKID_PTXAS_O`` sets ptxas's optimisation level (3).
+    NVRTC were compiled before. ``JAXSKID_PTXAS_O`` sets ptxas's optimisation level (1: on an H200 the G1's M and C ran faster built at
+    ``-O1`` than at ``-O3``, and built in about half the time; ``benchmarks/gpu.py``'s ``variants``).
 
     Raises:
         NvrtcError: no NVRTC, or the compiler rejected the source (the message ends with its log).
     """
-    level = os.environ.get("JAXSKID_PTXAS_O") or "3"
+    level = os.environ.get("JAXSKID_PTXAS_O") or "1"
     options = [f"--gpu-architecture={arch}", "--std=c++17", "-default-device", "-Xptxas", f"-O{level}"]
     key = hashlib.sha256("\0".join([source, *options, nvrtc_version()]).encode()).hexdigest()[:32]
     cubin = arch.startswith("sm_")

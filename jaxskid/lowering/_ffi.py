@@ -28,7 +28,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import NamedTuple
 
-from .._generated import NativeSource, Statement, VectorKernel
+from .._generated import GPU_ONLY, NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_rk4 import RK4_BACKWARD
 from ._templates import fill, template
@@ -233,7 +233,7 @@ def glue_parts(native: NativeSource) -> tuple[list[str | Piece], bool]:
     quantities: list[str | Piece] = []
     for name, sizes, cores, n_out, out_rank in native.kernels:
         kernel = native.vectors.get(name)
-        if kernel is None:
+        if kernel is None or name in GPU_ONLY:
             continue
         quantities += lane_functions(native, (name,), vec="V", drop_zeros=_scattered(kernel))
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import unknown_names, RequestError, ShapeError
-from .._generated import GeneratedModule, NativeBuild
+from .._generated import GPU_ONLY, GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
 from ._cuda import CudaKernel, cuda_kernel, enabled as cuda_enabled
 from ._ffi import enabled as native_enabled, library, log, native_quantity, target
@@ -126,17 +126,17 @@ class Dynamics(QuantitySet):
                 self._plain[name] = _traced_once(rule(self._plain[name]), name)
         self._jitted: dict[str, Callable] = {}
         self._user_raw: dict[tuple[str, bool], Callable] = {}
-        # the native libraries: each handler's library, built on first use
-        self._native_build: dict[str, NativeBuild] = {}
-        for lib in native:
-            self._native_build.update({k: lib for k in lib.sources.quantities})
-            if lib.sources.backward:
-                self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
-        self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         # the switches as they were when this Dynamics was made, for its life: C kernels on CPU, CUDA on a GPU
         self._cuda = cuda_enabled()
         self._native_wanted = native_enabled() or self._cuda
         self._cuda_kernels: dict[str, CudaKernel | None] = {}
+        # the native libraries: each handler's library, built on first use (the kernels of GPU_ONLY on a GPU)
+        self._native_build: dict[str, NativeBuild] = {}
+        for lib in native:
+            self._native_build.update({k: lib for k in lib.sources.quantities if self._cuda or k not in GPU_ONLY})
+            if lib.sources.backward:
+                self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
+        self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         # the quantity functions, as attributes (the methods of the same name, forward_dynamics, stay)
         self._quantities: dict[str, Quantity] = {
             name: Quantity(name, tuple(m["args"]), tuple(m["shape"]), m["equation"], m["doc"],
