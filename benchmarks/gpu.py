@@ -4,6 +4,7 @@ on a GPU machine: ``bash .gpu/run.sh`` there, with the wheels, URDF copies and c
 
     python benchmarks/gpu.py --prepare                  # URDF copies into --urdf-dir (from example-robot-data)
     JAXSKID_CACHE_DIR=.gpu/cache python benchmarks/gpu.py --derive-only
+    python benchmarks/gpu.py --rows rows.jsonl --markdown PATH   # the tables of recorded rows, measuring nothing
     JAXSKID_CACHE_DIR=.gpu/cache python benchmarks/gpu.py [--budget 420] [--batch 16384] [--out rows.jsonl]
                                                           [--markdown PATH] [--sections quantities,...]
                                                           [--forms cuda,jax] [--urdf-dir .gpu/urdf]
@@ -523,9 +524,12 @@ TABLES = {  # section: (column, key, format); the columns with a format but _run
 
 
 def summary(rows: list[dict]) -> list[str]:
-    """A Markdown table of each section's rows; a skipped or failed case says so in its first measured cell."""
+    """A Markdown table of each section's rows; a skipped or failed case says so in its first measured cell.
+    Rows of several runs (``--rows``) carry their run's number, in a first column."""
     lines = []
     for section, columns in TABLES.items():
+        if any("run" in r for r in rows):
+            columns = [("run", "run", None), *columns]
         first = next(k for k, (_, _, f) in enumerate(columns) if f not in (None, _runs))
         cells = []
         for row in (r for r in rows if r.get("section") == section):
@@ -537,6 +541,17 @@ def summary(rows: list[dict]) -> list[str]:
         if cells:
             lines += [f"**{section}**", "", *doc_tables.table([c for c, _, _ in columns], cells), ""]
     return lines
+
+
+def write_tables(markdown: Path | None, heading: str, rows: list[dict], batch: int, more: str = "") -> None:
+    """The tables of :func:`summary` under ``heading`` (the device, JAX's version, the date), printed and written
+    to ``markdown``."""
+    lines = doc_tables.Lines()
+    for line in [heading, "", *summary(rows)]:
+        lines(line)
+    doc_tables.write(markdown, lines, f"Batch {batch}, medians of 5 calls; first call: XLA's compile and the run "
+                     "(its persistent cache off; a CUDA kernel's NVRTC compile too), the generated modules cached; "
+                     "every inertial parameter symbolic; form: JAXSKID_CUDA=1 (cuda) or 0 (jax) when lowered. " + more)
 
 
 # ---------------------------------------------------------------------------------------------- main
@@ -552,6 +567,8 @@ def arguments() -> argparse.Namespace:
     parser.add_argument("--urdf-dir", type=Path, default=ROOT / ".gpu" / "urdf")
     parser.add_argument("--prepare", action="store_true", help="only write the URDF copies into --urdf-dir")
     parser.add_argument("--derive-only", action="store_true", help="only fill JAXSKID_CACHE_DIR")
+    parser.add_argument("--rows", type=Path, default=None, help="measure nothing: write --markdown from the rows "
+                        "of earlier runs (JSON lines, each with the number of its run)")
     doc_tables.add_option(parser)
     args = parser.parse_args()
     args.sections, args.forms = args.sections.split(","), args.forms.split(",")
@@ -571,6 +588,14 @@ def main() -> None:
         return
     if args.derive_only:
         derive(args.urdf_dir, args.sections)
+        return
+    if args.rows is not None:
+        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line.strip()]
+        starts = [r for r in rows if r.get("section") == "start"]
+        rows = [r for r in rows if r.get("section") != "lower" and "skipped" not in r]  # what was measured
+        heading = "; ".join(f"run {r.get('run', k + 1)}: {r['device']}, jax {r['jax']}, {r['date']}"
+                            for k, r in enumerate(starts))
+        write_tables(args.markdown, heading, rows, starts[0]["batch"], f"The rows of {args.rows.name}.")
         return
     jaxskid.compilation_cache(None)  # every first call compiles: none finds a program an earlier form compiled
     log = Log(args.budget, args.shares, args.out)
@@ -592,12 +617,7 @@ def main() -> None:
         deferred += quantities(log, args.urdf_dir, args.batch, args.forms[1:], "jax")
     slow(log, deferred)
     log(section="end", seconds=time.perf_counter() - START, abandoned=len(ABANDONED))
-    lines = doc_tables.Lines()
-    for line in [f"{device.device_kind}, jax {jax.__version__}, {stamp}", "", *summary(log.rows)]:
-        lines(line)
-    doc_tables.write(args.markdown, lines, f"Batch {args.batch}, medians of 5 calls; first call: XLA's compile and "
-                     "the run (its persistent cache off), the generated modules cached; every inertial parameter "
-                     "symbolic; form: JAXSKID_CUDA=1 (cuda) or 0 (jax) when lowered.")
+    write_tables(args.markdown, f"{device.device_kind}, jax {jax.__version__}, {stamp}", log.rows, args.batch)
     if ABANDONED:  # a compile left running in a daemon thread: leave without waiting for it
         sys.stdout.flush()
         os._exit(0)

@@ -36,21 +36,25 @@ from ._ffi import Piece, _chunked
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 from ._templates import fill, template
 
-THREADS = 128
-"""Threads per block (``JAXSKID_CUDA_THREADS`` sets another). The kernels of large robots use many registers
-per thread; 128 leaves the compiler its full register budget."""
+THREADS = 64
+"""Threads per block (``JAXSKID_CUDA_THREADS`` sets another). One state per thread leaves few threads per
+multiprocessor at the batches users run (16,384 states on an H200's 132 multiprocessors: 124 each), so small
+blocks spread them over every multiprocessor: the G1's M and C ran faster in blocks of 64 than of 128, and
+slowest in blocks of 256, which left half the multiprocessors idle (``benchmarks/gpu.py``'s ``variants``)."""
 
 
 def threads() -> int:
     """Threads per block: ``JAXSKID_CUDA_THREADS`` or :data:`THREADS`."""
     return int(os.environ.get("JAXSKID_CUDA_THREADS") or THREADS)
 
-LONG = 1024
+
+LONG = 4096
 """A kernel of more statements is split into device functions of :data:`CHUNK` statements (not inlined), which
 pass the values that cross a boundary through a per-thread workspace: ptxas's register allocation, like GCC's,
-takes time superlinear in a function's length, and the pieces of the G1's Coriolis matrix and regressor build
-several times faster than one function (:func:`jaxskid.lowering._ffi._chunked`, as for the CPU).
-``JAXSKID_CUDA_LONG`` sets another length."""
+takes time superlinear in a function's length (:func:`jaxskid.lowering._ffi._chunked`, as for the CPU). On an
+H200 the G1's Coriolis matrix (6,900 statements) built several times faster in pieces of 512 and ran faster
+than as one function or in pieces of 2,048; its mass matrix (2,150) ran faster as one function
+(``benchmarks/gpu.py``'s ``variants``). ``JAXSKID_CUDA_LONG`` sets another length."""
 
 CHUNK = 512
 """Statements per piece of a long kernel (``JAXSKID_CUDA_CHUNK`` sets another)."""
