@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import jaxskid
-from helpers import ERD, load
+from helpers import ERD, ROBOTS_DIR, load
 from jaxskid.lowering import _cuda
 
 QUANTITIES = ["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics", "mass_matrix_dot", "inverse_dynamics",
@@ -82,3 +82,34 @@ def test_g1(tmp_path):
     dyn = jaxskid.lower(jaxskid.read_urdf(G1), quantities=["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"])
     _check(dyn, ["mass_matrix", "regressor", "forward_dynamics"], tmp_path, np.random.default_rng(2), io=("float64",))
     _check(dyn, ["coriolis_matrix"], tmp_path, np.random.default_rng(3), io=("float64",), reference=dyn.coriolis_matrix)
+
+
+def test_programs_for_a_gpu_call_the_kernels(monkeypatch, tmp_path):
+    """With CUDA kernels on (as where JAX's backend is a CUDA GPU), a program lowered for CUDA calls the handler
+    with the kernel's number, the batch inside one call and the parameters shared by all states (one row);
+    so does its gradient, through the mass matrix's pullback kernel; and no JAX form of M is left in it."""
+    import jaxskid._api
+    import jaxskid.runtime._dynamics
+
+    for module in (jaxskid._api, jaxskid.runtime._dynamics):
+        monkeypatch.setattr(module, "cuda_enabled", lambda: True)
+    dyn = jaxskid.lower(jaxskid.load(ROBOTS_DIR / "arm_2r.yaml"), ["mass_matrix"], cache_dir=tmp_path)
+    assert dyn.report()["mass_matrix"] == "CUDA kernel"
+    q = jax.ShapeDtypeStruct((16, 2), jnp.float64)
+    skip = [jax.export.DisabledSafetyCheck.custom_call(_cuda_target())]
+
+    def exported(fn) -> list[str]:
+        text = jax.export.export(jax.jit(fn), platforms=["cuda"], disabled_checks=skip)(q).mlir_module()
+        return [line for line in text.splitlines() if "custom_call" in line]
+
+    calls = exported(lambda q: dyn.mass_matrix(q))
+    assert len(calls) == 1 and "kernel = " in calls[0]
+    assert "tensor<16x2xf64>, tensor<1x" in calls[0] and "-> tensor<16x2x2xf64>" in calls[0]
+    grads = exported(jax.grad(lambda q: jnp.sum(dyn.mass_matrix(q) ** 2)))
+    assert len(grads) == 2 and all(_cuda_target() in line for line in grads)
+
+
+def _cuda_target() -> str:
+    from jaxskid.runtime._cuda import TARGET
+
+    return TARGET
