@@ -1,9 +1,13 @@
 """The G1's quantities in the generated CUDA kernels and in the JAX form, the floating-base G1 against
 adam-robotics, and z1 rollouts with their gradients, on whatever JAX's default device is (prepared for one run
-on a GPU machine: ``bash .gpu/run.sh`` there, with the wheels, URDF copies and cache of ``.gpu/``).
+on a GPU machine: ``bash benchmarks/gpu_run.sh`` there, with the wheels, URDF copies and cache of ``.gpu/``,
+a folder git ignores, carried along).
 
     python benchmarks/gpu.py --prepare                  # URDF copies into --urdf-dir (from example-robot-data)
     JAXSKID_CACHE_DIR=.gpu/cache python benchmarks/gpu.py --derive-only
+    python -m pip download --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+        --platform manylinux_2_17_x86_64 -d .gpu/whl adam-robotics==0.5.0 urdfdom-py array-api-compat \
+        prettytable wcwidth yourdfpy trimesh six   # what the GPU machine lacks
     python benchmarks/gpu.py --rows rows.jsonl --markdown PATH   # the tables of recorded rows, measuring nothing
     JAXSKID_CACHE_DIR=.gpu/cache python benchmarks/gpu.py [--budget 420] [--batch 16384] [--out rows.jsonl]
                                                           [--markdown PATH] [--sections quantities,...]
