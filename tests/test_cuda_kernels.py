@@ -68,20 +68,22 @@ def test_panda(tmp_path):
 
 
 def test_solo12_floating_base(tmp_path):
-    """solo12 on a free-flyer base: a configuration of 7 + n entries, velocities of 6 + n."""
-    names = ["mass_matrix", "coriolis_matrix", "forward_dynamics"]
+    """solo12 on a free-flyer base: a configuration of 7 + n entries, velocities of 6 + n (the lowering of
+    test_pullbacks' solo12, so a run derives it once)."""
+    names = ["mass_matrix", "inverse_dynamics"]
     dyn = jaxskid.lower(jaxskid.load(ERD / "solo_description/robots/solo12.urdf", floating_base=True), names)
-    _check(dyn, names, tmp_path, np.random.default_rng(1))
+    _check(dyn, names, tmp_path, np.random.default_rng(1), io=("float64",))
 
 
 @pytest.mark.slow
 def test_g1(tmp_path):
     """The 29-DOF humanoid (the lowering of test_native_quantities' G1 test, so a run derives it once). Its
-    Coriolis matrix against the CPU's C kernel (which that test checks against Pinocchio): XLA takes long to
-    compile its JAX form."""
+    Coriolis matrix and regressor against the CPU's C kernels (which that test checks against Pinocchio): XLA
+    takes long to compile their JAX form."""
     dyn = jaxskid.lower(jaxskid.read_urdf(G1), quantities=["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"])
-    _check(dyn, ["mass_matrix", "regressor", "forward_dynamics"], tmp_path, np.random.default_rng(2), io=("float64",))
+    _check(dyn, ["mass_matrix", "forward_dynamics"], tmp_path, np.random.default_rng(2), io=("float64",))
     _check(dyn, ["coriolis_matrix"], tmp_path, np.random.default_rng(3), io=("float64",), reference=dyn.coriolis_matrix)
+    _check(dyn, ["regressor"], tmp_path, np.random.default_rng(4), io=("float64",), reference=dyn.regressor)
 
 
 def test_programs_for_a_gpu_call_the_kernels(monkeypatch, tmp_path):

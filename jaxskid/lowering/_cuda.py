@@ -137,8 +137,9 @@ def _check(lib, status: int, what: str, log: str = "") -> None:
 def compile_kernel(source: str, arch: str = "sm_90", root: Path | None = None) -> bytes:
     """The compiled ``source``: a cubin for a real architecture (``"sm_90"``), or PTX for a virtual one
     (``"compute_90"``: what the tests check where no GPU is), read from ``root`` when this source, target and
-    NVRTC were compiled before. ``JAXSKID_PTXAS_O`` sets ptxas's optimisation level (1: on an H200 the G1's M and C ran faster built at
-    ``-O1`` than at ``-O3``, and built in about half the time; ``benchmarks/gpu.py``'s ``variants``).
+    NVRTC were compiled before. ``JAXSKID_PTXAS_O`` sets ptxas's optimisation level (1: on an H200 neither
+    level ran the G1's M and C faster in both of two runs, and ``-O1`` built the Coriolis matrix in less time;
+    ``benchmarks/gpu.py``'s ``variants``).
 
     Raises:
         NvrtcError: no NVRTC, or the compiler rejected the source (the message ends with its log).
