@@ -27,9 +27,9 @@ def _kernels(dyn):
     return found
 
 
-def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), reference=None):
+def _check(dyn, names, tmp_path, rng, io=("float64", "float32")):
     """Each quantity of ``names``: its kernel compiles to PTX for each dtype of ``io``, and built for the host it
-    agrees at 1e-12 with the JAX form (or with ``reference``, a function of the batch)."""
+    agrees at 1e-12 with the JAX form."""
     kernels = _kernels(dyn)
     assert set(names) <= set(kernels)
     p = np.asarray(dyn.param_vector())
@@ -45,12 +45,9 @@ def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), reference=None)
                   for k, a in enumerate(args)]
         out = np.full((2, 3, *shape), np.nan)
         _cuda.run_on_host(host, [*states, p], cores, out, out_rank)
-        if reference is None:
-            inner = jax.vmap(dyn.raw(name), in_axes=(*[0] * len(args), None))
-            reference_of = jax.vmap(inner, in_axes=(0, *[None] * (len(args) - 1), None))
-            want = np.asarray(reference_of(*(jnp.asarray(x) for x in states), jnp.asarray(p)))
-        else:
-            want = np.asarray(reference(*np.broadcast_arrays(*(x if x.ndim == 3 else x[None] for x in states))[:len(args)]))
+        inner = jax.vmap(dyn.raw(name), in_axes=(*[0] * len(args), None))
+        reference_of = jax.vmap(inner, in_axes=(0, *[None] * (len(args) - 1), None))
+        want = np.asarray(reference_of(*(jnp.asarray(x) for x in states), jnp.asarray(p)))
         np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=name)
 
 
@@ -75,15 +72,24 @@ def test_solo12_floating_base(tmp_path):
     _check(dyn, names, tmp_path, np.random.default_rng(1), io=("float64",))
 
 
+def test_long_kernels_in_pieces(monkeypatch, tmp_path):
+    """Kernels longer than JAXSKID_CUDA_LONG statements, split into device functions that pass values through a
+    workspace (the G1's Coriolis matrix and regressor are), forced here on the Panda."""
+    monkeypatch.setenv("JAXSKID_CUDA_LONG", "200")
+    monkeypatch.setenv("JAXSKID_CUDA_CHUNK", "64")
+    names = ["coriolis_matrix", "regressor"]
+    dyn = jaxskid.lower(load("panda7"), QUANTITIES)
+    source = _cuda.kernel_source(_kernels(dyn)["coriolis_matrix"][0], "coriolis_matrix")
+    assert source.count("__attribute__((noinline))") > 3
+    _check(dyn, names, tmp_path, np.random.default_rng(5), io=("float64",))
+
+
 @pytest.mark.slow
 def test_g1(tmp_path):
-    """The 29-DOF humanoid (the lowering of test_native_quantities' G1 test, so a run derives it once). Its
-    Coriolis matrix and regressor against the CPU's C kernels (which that test checks against Pinocchio): XLA
-    takes long to compile their JAX form."""
-    dyn = jaxskid.lower(jaxskid.read_urdf(G1), quantities=["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics"])
-    _check(dyn, ["mass_matrix", "forward_dynamics"], tmp_path, np.random.default_rng(2), io=("float64",))
-    _check(dyn, ["coriolis_matrix"], tmp_path, np.random.default_rng(3), io=("float64",), reference=dyn.coriolis_matrix)
-    _check(dyn, ["regressor"], tmp_path, np.random.default_rng(4), io=("float64",), reference=dyn.regressor)
+    """The 29-DOF humanoid: M and tau (the lowering of test_pullbacks' G1, so a run derives it once)."""
+    names = ["mass_matrix", "inverse_dynamics"]
+    dyn = jaxskid.lower(jaxskid.load(G1), names)
+    _check(dyn, names, tmp_path, np.random.default_rng(2), io=("float64",))
 
 
 def test_programs_for_a_gpu_call_the_kernels(monkeypatch, tmp_path):
