@@ -133,7 +133,8 @@ def lower(
         asked, options = resolve(robot, quantities), options or Options()
         names = resolve(robot, [*asked, *(k for n in asked for k in QUANTITIES[n].derivatives)])
     # where no kernel can run (JAXSKID_NATIVE=0 on CPU, JAXSKID_CUDA=0 on a GPU, a TPU), no C is printed
-    c_kernels, native_c = native_enabled(), native_enabled() or cuda_enabled()
+    c_kernels = native_enabled()
+    native_c = c_kernels or cuda_enabled()
     key = module_key(robot, names, options, native_c)
     if cache:
         default_compilation_cache()

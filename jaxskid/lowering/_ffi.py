@@ -117,17 +117,16 @@ short anyway."""
 
 
 def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset(), io: str | None = None,
-             long: int | None = None, chunk_size: int | None = None, huge: int | None = -1) -> list[str | Piece]:
+             long: int | None = None, chunk_size: int | None = None, huge: int | None = HUGE) -> list[str | Piece]:
     """The function ``name`` of ``kernel``, split into functions of ``chunk_size`` statements (:data:`CHUNK`)
     that pass the values later pieces read through a workspace, where it has more than ``long``; the outputs
     ``zeros`` are not assigned. GCC's register allocator takes time quadratic in a function's length (the G1's
     Coriolis matrix, 4,300 statements: 2.7 minutes at ``-O1``); pieces of a few hundred statements compile in
     linear time, and only the values that cross a boundary go to memory. ``io``: the type the inputs and the
     output point to (``vec`` where None); ``huge``: the length from which GCC builds the pieces at ``-Og``
-    (None: never). Left out, ``long``, ``chunk_size`` and ``huge`` are :data:`LONG`, :data:`CHUNK` and
-    :data:`HUGE` as they are when called."""
+    (None: never). Left out, ``long`` and ``chunk_size`` are :data:`LONG` and :data:`CHUNK` as they are when
+    called."""
     long, chunk_size = LONG if long is None else long, CHUNK if chunk_size is None else chunk_size
-    huge = HUGE if huge == -1 else huge
     ptr = io or vec
     params = ", ".join([*(f"const {ptr} *{a}" for a in kernel.args), f"{ptr} *out"])
     statements = kernel.statements
