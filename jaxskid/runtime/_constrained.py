@@ -23,7 +23,9 @@ otherwise ``A qdd = gamma - eps lambda``.
 The derivatives follow from the implicit function theorem on the residuals ``R1 = ID(q, qd, qdd, p) - tau -
 A^T lambda`` and ``R2 = A qdd + eps lambda - gamma`` (as :mod:`jaxskid.runtime._implicit` does for forward
 dynamics): a directional derivative is one forward-mode pass of inverse dynamics and of the constraint
-quantities at the solution, then the same Schur solve; reverse mode transposes it.
+quantities at the solution, then the same Schur solve; reverse mode solves the transposed system, which is the
+same Schur solve of other right-hand sides, and pulls the result back through the residuals (the quantities'
+closed-form pullbacks), without transposing the elimination.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from ._forward import _bias
 from ._jit import jit
 from ._ldl import assemble, materialize
 from ._parameters import param_array
+from ._pullback import Rule, tangent_p
 from ._sparse import kkt, minus, plus
 
 CONSTRAINT_QUANTITIES = ("constraint_jacobian", "constraint_drift", "constraint_residual")
@@ -173,37 +176,74 @@ def _gamma(fn: dict, stabilization: Baumgarte | None) -> Callable:
 
 def constrained(dyn, stabilization: Baumgarte | None = None, regularization: float = 0.0) -> Callable:
     """The single-state function ``(qdd, lambda) = f(q, qd, tau, p)`` with ``p`` a parameter vector and its
-    derivative rule (module docstring). It works on the quantities' entries, one scalar at a time, so the
+    derivative rules (module docstring). It works on the quantities' entries, one scalar at a time, so the
     same function serves a single state and ``jax.vmap``."""
+    solve = _joined(dyn, stabilization, regularization)
+    nv = dyn.signature("constraint_jacobian")[1][1]
+
+    def split(q, qd, tau, p):
+        y = solve(q, qd, tau, p)
+        return y[..., :nv], y[..., nv:]
+
+    return split
+
+
+def _joined(dyn, stabilization: Baumgarte | None, regularization: float) -> Callable:
+    """``[qdd; lambda] = f(q, qd, tau, p)`` of one state, with two derivative rules by the implicit function
+    theorem on the residuals ``R1 = ID(q, qd, qdd, p) - A^T lambda - tau`` and ``R2 = A qdd + eps lambda -
+    gamma``, whose Jacobian with respect to ``(qdd, lambda)`` is the KKT matrix ``K = [[M, -A^T], [A, eps]]``:
+
+    - forward mode: ``K [dqdd; dlambda] = [dtau - d1; -d2]``, ``(d1, d2)`` one forward-mode pass of the
+      residuals at the solution;
+    - reverse mode (the transpose of that tangent, :mod:`jaxskid.runtime._pullback`): ``K^T y = w`` is the same
+      KKT solve, ``M y1 - A^T u = w1``, ``A y1 + eps u = -w2``, ``y2 = -u``; then the cotangent of ``tau`` is
+      ``y1`` and that of ``(q, qd, p)`` is minus the pullback of ``y1^T R1 + y2^T R2``, one reverse pass of the
+      residuals (the quantities' closed-form pullbacks). The reverse pass runs the solve as the forward pass
+      does, instead of transposing its elimination, and keeps only the states and the solution.
+    """
     require_constraints(dyn, "constrained dynamics")
     stabilization, eps = options(stabilization, regularization)
     fn, entry = _functions(dyn), _entry_functions(dyn)
-    rows = dyn.signature("constraint_jacobian")[1][0]
+    rows, nv = dyn.signature("constraint_jacobian")[1]
     sides, plain_gamma = _right_sides(entry, rows, stabilization), _gamma(fn, stabilization)
+
+    def residuals(q, qd, p, qdd, lam):
+        a = fn["jacobian"](q, p)
+        return fn["inverse"](q, qd, qdd, p) - lam @ a, a @ qdd + eps * lam - plain_gamma(q, qd, p, a)
+
+    def solution(q, qd, tau, p):
+        a = entry["jacobian"](q, p)
+        x, lam = kkt(entry["mass"](q, p), a, *sides(q, qd, tau, p, a), eps)
+        return assemble([*x, *lam], qd.dtype)
+
+    def tangent(q, qd, tau, p, qdd, lam, dq, dqd, dtau, dp, _dqdd, _dlam):
+        _, (d1, d2) = jax.jvp(lambda q, qd, p: residuals(q, qd, p, qdd, lam), (q, qd, p), (dq, dqd, dp))
+        r1, r2 = dtau - d1, -d2
+        x, dlam = kkt(entry["mass"](q, p), entry["jacobian"](q, p), [r1[i] for i in range(nv)],
+                      [r2[c] for c in range(rows)], eps)
+        return assemble([*x, *dlam], qd.dtype)
+
+    def pullback(q, qd, tau, p, qdd, lam, w):
+        y1, u = kkt(entry["mass"](q, p), entry["jacobian"](q, p), [w[i] for i in range(nv)],
+                    [-w[nv + c] for c in range(rows)], eps)
+        y = materialize(assemble([*y1, *u], qd.dtype))  # computed once, not inside each of its users
+        y1, y2 = y[:nv], -y[nv:]
+        _, pull = jax.vjp(lambda q, qd, p: residuals(q, qd, p, qdd, lam), q, qd, p)
+        gq, gqd, gp = pull((-y1, -y2))
+        return gq, gqd, y1, gp, jnp.zeros_like(qdd), jnp.zeros_like(lam)
+
+    rule = Rule(tangent, pullback, 6, (nv + rows,))
 
     @jax.custom_jvp
     def solve(q, qd, tau, p):
-        a = entry["jacobian"](q, p)
-        x, lam = kkt(entry["mass"](q, p), a, *sides(q, qd, tau, p, a), eps)
-        return assemble(x, qd.dtype), assemble(lam, qd.dtype)
-
-    @jax.checkpoint  # reverse mode keeps (q, qd, qdd, lambda, p), not the linearisation of the residuals
-    def tangent(q, qd, qdd, lam, p, dq, dqd, dtau, dp):
-        def residuals(q, qd, p):
-            a = fn["jacobian"](q, p)
-            return fn["inverse"](q, qd, qdd, p) - lam @ a, a @ qdd + eps * lam - plain_gamma(q, qd, p, a)
-
-        _, (d1, d2) = jax.jvp(residuals, (q, qd, p), (dq, dqd, dp))
-        r1, r2 = dtau - d1, -d2
-        x, dlam = kkt(entry["mass"](q, p), entry["jacobian"](q, p), [r1[i] for i in range(r1.shape[-1])],
-                      [r2[c] for c in range(rows)], eps)
-        return assemble(x, qd.dtype), assemble(dlam, qd.dtype)
+        return solution(q, qd, tau, p)
 
     @solve.defjvp
-    def rule(primals, tangents):
-        qdd, lam = solve(*primals)
-        q, qd, _, p = primals
-        return (qdd, lam), tangent(q, qd, qdd, lam, p, *tangents)
+    def _derivative(primals, tangents):
+        y = materialize(solution(*primals))  # once, for the result and for the pullback's residuals
+        qdd, lam = y[:nv], y[nv:]
+        return y, tangent_p.bind(*primals, qdd, lam, *tangents, jnp.zeros_like(qdd), jnp.zeros_like(lam),
+                                 rule=rule, stack=())
 
     return solve
 
@@ -234,11 +274,7 @@ def _forward(dyn, q, qd, tau, params, stabilization, regularization):
     (q, qd, tau), dtype = float_arrays((q, qd, tau))
     p = param_array(dyn.layout, params, dtype)
     batch = _state_batch(dyn, "constrained_forward_dynamics", [("q", q), ("qd", qd), ("tau", tau)], p)
-    solve = constrained(dyn, stabilization, regularization)
-
-    def joined(q, qd, tau, p):
-        return jnp.concatenate(solve(q, qd, tau, p))
-
+    joined = _joined(dyn, stabilization, regularization)
     out = joined(q, qd, tau, p) if not batch else vmapped(joined, batch, [(q, 1), (qd, 1), (tau, 1), (p, 1)])
     nv = qd.shape[-1]
     return out[..., :nv], out[..., nv:]
