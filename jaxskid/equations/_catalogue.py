@@ -148,7 +148,8 @@ def _pullback_shape(args: tuple[str, ...]) -> Callable[[Robot], tuple[int, ...]]
     return lambda r: (sum(_argument_size(r, a) for a in args) + len(r.parameters),)
 
 
-def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, kinematic: bool = False) -> QuantitySpec:
+def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, kinematic: bool = False,
+              constraint: bool = False) -> QuantitySpec:
     """The pullback of ``base`` (arguments ``args``): the gradients of ``<W, base>`` with respect to its state
     arguments and the parameters, concatenated. The runtime differentiates ``base`` with it in reverse mode."""
     wrt = ", ".join(f"d/d{a}" for a in (*args, "p"))
@@ -159,7 +160,8 @@ def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, kin
         f"entries with respect to {', '.join(args)} and the parameters, concatenated (nq entries for q, 6 per "
         "end-effector for a wrench, nv for the others, then one per parameter), by a symbolic reverse sweep of its "
         f"program. It gives jax.grad through {base} at a few times the cost of {base} itself.",
-        pullback_of=base, needs_end_effector=kinematic, needs_inertia=not kinematic,
+        pullback_of=base, needs_end_effector=kinematic, needs_inertia=not (kinematic or constraint),
+        needs_constraints=constraint,
     )
 
 
@@ -177,14 +179,6 @@ def _standard_row(r: Robot) -> tuple[int, ...]:
 
 def _centroidal(rows: int) -> Callable[[Robot], tuple[int, ...]]:
     return lambda r: (rows, r.nv)
-
-
-def _constraint_rows(r: Robot) -> tuple[int, ...]:
-    return (n_rows(r.constraints),)
-
-
-def _constraint_matrix(r: Robot) -> tuple[int, ...]:
-    return (n_rows(r.constraints), r.nv)
 
 
 # ---------------------------------------------------------------------------------------------- time derivatives
@@ -418,25 +412,26 @@ _CATALOGUE = (
         "bodies' and the armature's columns): d/dt (K + U) = qd^T tau - y_P pi.",
     ),
     QuantitySpec(
-        "constraint_jacobian", ("q",), _constraint_matrix, lambda d: _flat(sym.constraint_jacobian(d)),
+        "constraint_jacobian", ("q",), lambda r: (n_rows(r.constraints), r.nv),
+        lambda d: _flat(sym.constraint_jacobian(d)),
         "A(q) qd = dphi/dt, A = J^h_a - J^h_b on the constrained axes",
         "Constraint Jacobian: one row per constrained world axis (rx, ry, rz, x, y, z) of each constraint "
         "(jaxskid.PointContact, FrameContact, LoopClosure), one column per velocity coordinate; M qdd + h = "
         "tau + A^T lambda, lambda the constraint wrenches (moment, force) in world axes.",
         needs_constraints=True,
-        needs_inertia=False,
+        needs_inertia=False, derivatives=("constraint_jacobian_vjp",),
     ),
     QuantitySpec(
-        "constraint_drift", ("q", "qd"), _constraint_rows, sym.constraint_drift,
+        "constraint_drift", ("q", "qd"), lambda r: (n_rows(r.constraints),), sym.constraint_drift,
         "Adot(q, qd) qd", "Drift term of the constraints: A qdd + Adot qd = d^2 phi/dt^2 (the frames' classical "
         "accelerations at qdd = 0, without gravity).", needs_constraints=True,
-        needs_inertia=False,
+        needs_inertia=False, derivatives=("constraint_drift_vjp",),
     ),
     QuantitySpec(
-        "constraint_residual", ("q",), _constraint_rows, sym.constraint_residual,
+        "constraint_residual", ("q",), lambda r: (n_rows(r.constraints),), sym.constraint_residual,
         "phi(q)", "Position residual of the constraints, zero where they hold: p_a - p_b along the translations, "
         "the axis of the skew part of R_a R_b^T (sin(angle) axis) about the rotations.", needs_constraints=True,
-        needs_inertia=False,
+        needs_inertia=False, derivatives=("constraint_residual_vjp",),
     ),
     QuantitySpec(
         "center_of_mass", ("q",), lambda r: (3,), sym.center_of_mass,
@@ -479,6 +474,9 @@ _CATALOGUE = (
     _pullback("ee_pose", ("q",), "cotangent_pose", "C_e(q)", kinematic=True),
     _pullback("ee_hybrid_twist", ("q", "qd"), "cotangent_ee", "V_e^h(q, qd)", kinematic=True),
     _pullback("external_torques", ("q", "wrench"), "cotangent", "Q_ext(q, W_e)", kinematic=True),
+    _pullback("constraint_jacobian", ("q",), "cotangent_constraint", "A(q)", constraint=True),
+    _pullback("constraint_drift", ("q", "qd"), "cotangent_rows", "Adot(q, qd) qd", constraint=True),
+    _pullback("constraint_residual", ("q",), "cotangent_rows", "phi(q)", constraint=True),
 )
 
 QUANTITIES: MappingProxyType[str, QuantitySpec] = MappingProxyType({spec.name: spec for spec in _CATALOGUE})

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from .._errors import RequestError, unknown_names
+from ..model._constraint import n_rows
 from ..model._robot import Robot
 from .. import symbolic as sym
 from ..symbolic import STATE_ORDERS, WRENCH_ORDERS, Derivation, Inputs
@@ -34,6 +35,8 @@ _ARGUMENT_DOCS = {
     "cotangent_matrix": "weights W of a vector-Jacobian product sum_ij W_ij d(matrix entry ij)",
     "cotangent_ee": "weights W of a vector-Jacobian product sum_ek W_ek d(entry k of end-effector e)",
     "cotangent_pose": "weights W of a vector-Jacobian product sum_eij W_eij d(pose entry ij of end-effector e)",
+    "cotangent_constraint": "weights W of a vector-Jacobian product sum_ij W_ij d(constraint Jacobian entry ij)",
+    "cotangent_rows": "weights w of a vector-Jacobian product w^T d(one value per constraint row)",
     "wrench": "end-effector wrenches (moment, force)",
     "wrench_d": "first time derivatives of the end-effector wrenches",
     "wrench_dd": "second time derivatives of the end-effector wrenches",
@@ -173,9 +176,10 @@ def _without_inertia(robot: Robot, names: list[str], default: bool) -> list[str]
 def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
     """The arguments' shapes: ``q`` ``(nq,)``, the velocity-space ones ``(nv,)`` (``n`` each for a fixed base; a
     floating base's position and quaternion, or its twist or wrench, first), the wrenches ``(n_ee, 6)``."""
-    n_ee = len(robot.end_effectors)
+    n_ee, rows = len(robot.end_effectors), n_rows(robot.constraints)
     shapes = {**{k: (robot.nq if k == "q" else robot.nv,) for k in (*STATE_ORDERS, "tau", "cotangent")},
               "cotangent_matrix": (robot.nv, robot.nv), "cotangent_ee": (n_ee, 6), "cotangent_pose": (n_ee, 4, 4),
+              "cotangent_constraint": (rows, robot.nv), "cotangent_rows": (rows,),
               **{k: (n_ee, 6) for k in WRENCH_ORDERS}}
     docs = dict(_ARGUMENT_DOCS)
     if robot.floating_base:

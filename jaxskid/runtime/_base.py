@@ -140,13 +140,17 @@ class QuantitySet:
     def argument_shape(self, arg: str) -> tuple[int, ...]:
         """The shape of one state of the argument ``arg``: ``(n_ee, 6)`` for the wrenches and ``cotangent_ee``,
         ``(n_ee, 4, 4)`` for ``cotangent_pose``, ``(nq,)`` for ``q``, ``(nv,)`` for the velocity-space ones (``qd``,
-        ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``."""
+        ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``, the constraint Jacobian's
+        ``(m, nv)`` for ``cotangent_constraint`` and ``(m,)`` for ``cotangent_rows``."""
         if arg.startswith("wrench") or arg == "cotangent_ee":
             return (len(self.end_effectors), 6)
         if arg == "cotangent_pose":
             return (len(self.end_effectors), 4, 4)
         if arg == "cotangent_matrix":
             return (self.nv, self.nv)
+        if arg in ("cotangent_constraint", "cotangent_rows"):  # the constraint Jacobian's shape, or its rows
+            shape = tuple(self.signature("constraint_jacobian")[1])
+            return shape if arg == "cotangent_constraint" else shape[:1]
         return (self.nq,) if arg == "q" else (self.nv,)
 
     def default_params(self) -> dict[str, float]:

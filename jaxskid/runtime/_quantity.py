@@ -26,6 +26,8 @@ _ARGUMENT_UNITS = {
     "cotangent_matrix": "a cotangent of the result (the result's units inverted)",
     "cotangent_ee": "a cotangent of the result (the result's units inverted)",
     "cotangent_pose": "a cotangent of the result (the result's units inverted)",
+    "cotangent_constraint": "a cotangent of the result (the result's units inverted)",
+    "cotangent_rows": "a cotangent of the result (the result's units inverted)",
 }
 
 _TORQUE = "N m per revolute joint, N per prismatic joint"

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
+from ..model._constraint import n_rows
 from ..model._robot import Robot, symbol
 from ._tape import Tape
 
@@ -34,9 +35,11 @@ STATE_ORDERS = ("q", "qd", "qdd", "q3d", "q4d")
 WRENCH_ORDERS = ("wrench", "wrench_d", "wrench_dd")
 """The names of the end-effector wrenches and their time derivatives, by order."""
 
-COTANGENTS = ("cotangent", "cotangent_matrix", "cotangent_ee", "cotangent_pose")
+COTANGENTS = ("cotangent", "cotangent_matrix", "cotangent_ee", "cotangent_pose", "cotangent_constraint",
+              "cotangent_rows")
 """The names of the weights of a vector-Jacobian product: of joint forces ``(nv,)``, of a square matrix in velocity
-space ``(nv, nv)``, of a 6-vector per end-effector ``(n_ee, 6)`` and of a pose per end-effector ``(n_ee, 4, 4)``."""
+space ``(nv, nv)``, of a 6-vector per end-effector ``(n_ee, 6)``, of a pose per end-effector ``(n_ee, 4, 4)``, of the
+constraint Jacobian ``(m, nv)`` and of a value per constraint row ``(m,)``."""
 
 BASE_COLUMNS = tuple(("base", c) for c in range(6))
 """The keys of the floating base's six velocity coordinates ``(omega, v)`` among a Jacobian's columns."""
@@ -63,7 +66,9 @@ class Inputs:
     ``cotangent`` the weights ``_ct{k}`` of a vector-Jacobian product of joint forces (shape ``(n,)``),
     ``cotangent_matrix`` those ``_cm{k}`` of one of a square matrix in velocity space (``(n, n)``, row-major),
     ``cotangent_ee`` those ``_ce{k}`` of one of a 6-vector per end-effector (``(n_ee, 6)``) and ``cotangent_pose``
-    those ``_cp{k}`` of one of a 4 x 4 pose per end-effector (``(n_ee, 4, 4)``).
+    those ``_cp{k}`` of one of a 4 x 4 pose per end-effector (``(n_ee, 4, 4)``); ``cotangent_constraint`` those
+    ``_cc{k}`` of one of the constraint Jacobian (``(m, nv)``, m constraint rows) and ``cotangent_rows`` those
+    ``_cr{k}`` of one of a value per constraint row (``(m,)``).
     With a floating base, ``base[k]`` holds the base's symbols of order k: the position and unit quaternion
     ``(x, y, z, qx, qy, qz, qw)`` (``_q_b0`` .. ``_q_b6``) for k = 0, then the base twist ``(omega, v)`` in the
     base frame and its derivatives (``_qd_b0`` .. ``_qd_b5``, ...); ``tau`` and ``cotangent`` start with the base's
@@ -78,6 +83,8 @@ class Inputs:
     cotangent_matrix: tuple[sp.Symbol, ...] = ()
     cotangent_ee: tuple[sp.Symbol, ...] = ()
     cotangent_pose: tuple[sp.Symbol, ...] = ()
+    cotangent_constraint: tuple[sp.Symbol, ...] = ()
+    cotangent_rows: tuple[sp.Symbol, ...] = ()
     coordinates: tuple[int, ...] | None = None
     """The body of each coordinate (``None``: every body, in order)."""
     base: tuple[tuple[sp.Symbol, ...], ...] = ()
@@ -104,6 +111,8 @@ class Inputs:
             cotangent_matrix=_symbols("_cm", nv * nv),
             cotangent_ee=_symbols("_ce", 6 * n_ee),
             cotangent_pose=_symbols("_cp", 16 * n_ee),
+            cotangent_constraint=_symbols("_cc", n_rows(robot.constraints) * nv),
+            cotangent_rows=_symbols("_cr", n_rows(robot.constraints)),
             coordinates=None if n == robot.n_bodies else robot.coordinates,
             base=tuple(_symbols(f"_{k}_b", 7 if k == "q" else 6) for k in STATE_ORDERS) if robot.floating_base else (),
         )
