@@ -133,6 +133,16 @@ def test_contact_kinematics(robot):
     _check(dyn, batch=2, names=CONTACT)
 
 
+def test_constraint_quantities():
+    """The constraint Jacobian, drift and residual come with their pullbacks (the reverse rule of constrained
+    dynamics pulls through them): the four-bar, whose link lengths and gravity are parameters."""
+    names = ["constraint_jacobian", "constraint_drift", "constraint_residual"]
+    dyn = jaxskid.lower(jaxskid.load(ROBOTS_DIR / "four_bar.yaml"), names)
+    assert {f"{name}_vjp" for name in names} <= set(dyn.quantities)
+    assert dyn.argument_shape("cotangent_constraint") == dyn.signature("constraint_jacobian")[1]
+    _check(dyn, batch=3, names=names)
+
+
 @pytest.fixture(scope="module")
 def arm():
     return jaxskid.lower(load("arm_3dof"), QUANTITIES)
