@@ -14,7 +14,10 @@ out. Forms:
 - ``flat-where``: one chain ``jnp.where(index == k, value_k, out)`` over the flattened entries;
 - ``nested-where``: one chain per axis on ``lax.broadcasted_iota``;
 - ``broadcast-nested``: the same, with the inputs broadcast to the output's shape first (what jaxskid
-  generates).
+  generates);
+- ``reduce``: every distinct entry an output of one variadic ``lax.reduce`` (by ``max``, exact) over two
+  lanes of inputs broadcast to shape ``(2,)``, which XLA compiles into one multi-output kernel, then stacked
+  into the result.
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
 :mod:`jaxskid._fused` (what jaxskid's programs use on CPU; on other platforms they call XLA's), forced
@@ -53,12 +56,13 @@ LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 URDFS = {"ur5": ERD / "ur_description/urdf/ur5_robot.urdf", "solo12": ERD / "solo_description/robots/solo12.urdf",
          "g1": ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf",
          "g1_hands": ERD / "g1_description/urdf/g1_29dof_with_hand_rev_1_0.urdf"}
-FORMS = ("stack", "flat-where", "nested-where", "broadcast-nested")
+FORMS = ("stack", "flat-where", "nested-where", "broadcast-nested", "reduce")
 
 
-def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tuple[str, bool, bool]]:
-    """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, whether to spread, and
-    whether reciprocals are divisions instead of Newton's iteration."""
+def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tuple[str, object, bool]]:
+    """Source of ``_name(*args, p, spread)`` in every (form, trig) combination, whether to spread (``True``: to
+    the output's shape; a shape: to that one), and whether reciprocals are divisions instead of Newton's
+    iteration."""
     layout = Layout(eqs, (name,), jax_names)
     (kernel,) = layout.programs
     generated = function_source(layout, kernel, JaxPrinter())
@@ -78,9 +82,17 @@ def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tu
             names[e] = e if e.isidentifier() else f"_o{len(names)}"
             if names[e] != e:
                 stack.append(f"    {names[e]} = {e}")
+    distinct = [v for v in names.values() if v != "_z"]
+    reduce = stack[:-1] + [  # one kernel computes them all: a reduce's outputs share its loop
+        f"    _r = jax.lax.reduce(tuple(jnp.broadcast_to(v, (2,)) for v in ({', '.join(distinct)},)), "
+        f"(jnp.asarray(-jnp.inf, {dtype}),) * {len(distinct)}, "
+        "lambda x, y: tuple(jax.lax.max(a, b) for a, b in zip(x, y)), (0,))",
+        f"    _m = dict(zip({distinct!r}, _r), _z=_z)",
+        "    return jnp.stack([" + ", ".join(f"_m[{names[e]!r}]" for e in outs) + f"]).reshape({shape!r})"]
     stack.append("    return jnp.stack([" + ", ".join(names[e] for e in outs) + f"]).reshape({shape!r})")
     forms = {"stack": (head + "\n".join(stack) + "\n", False), "flat-where": (head + "\n".join(flat) + "\n", False),
-             "nested-where": (body, False), "broadcast-nested": (body, True)}
+             "nested-where": (body, False), "broadcast-nested": (body, True),
+             "reduce": (head + "\n".join(reduce) + "\n", (2,))}
     out = {}
     for form, (src, spread) in forms.items():
         if form not in which:
@@ -113,7 +125,8 @@ def _compile(src: str, spread: bool, division: bool, label: str, quantity: str, 
     if division:
         ns["_recip"] = lambda x: 1.0 / x
     exec(src, ns)  # noqa: S102
-    body, how = ns["_" + quantity], ns["_spread"](shape) if spread else ns["_same"]
+    spread = shape if spread is True else spread  # True: the output's shape; a shape: that one
+    body, how = ns["_" + quantity], ns["_spread"](spread) if spread else ns["_same"]
     fn = jax.vmap(lambda *a, body=body, how=how: body(*a, how), in_axes=(*([0] * nargs), None))
     into = jax.jit(lambda *a: fn(*a[:-1]), donate_argnums=(nargs + 1,), compiler_options=compiler_options())
     return jax.jit(fn, compiler_options=compiler_options()), into
