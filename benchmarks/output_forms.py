@@ -83,7 +83,7 @@ def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tu
             if names[e] != e:
                 stack.append(f"    {names[e]} = {e}")
     distinct = [v for v in names.values() if v != "_z"]
-    reduce = stack[:-1] + [  # one kernel computes them all: a reduce's outputs share its loop
+    reduce = list(stack) + [  # one kernel computes them all: a reduce's outputs share its loop
         f"    _r = jax.lax.reduce(tuple(jnp.broadcast_to(v, (2,)) for v in ({', '.join(distinct)},)), "
         f"(jnp.asarray(-jnp.inf, {dtype}),) * {len(distinct)}, "
         "lambda x, y: tuple(jax.lax.max(a, b) for a, b in zip(x, y)), (0,))",
