@@ -141,6 +141,8 @@ def test_constraint_quantities():
     assert {f"{name}_vjp" for name in names} <= set(dyn.quantities)
     assert dyn.argument_shape("cotangent_constraint") == dyn.signature("constraint_jacobian")[1]
     _check(dyn, batch=3, names=names)
+    alone = jaxskid.lower(jaxskid.load(ROBOTS_DIR / "four_bar.yaml"), ["constraint_drift"])  # no Jacobian lowered
+    _check(alone, batch=2, names=["constraint_drift"])
 
 
 @pytest.fixture(scope="module")

@@ -25,6 +25,7 @@ import sympy as sp
 from .._errors import RequestError
 from .._version import __version__
 from ..equations._derive import Equations
+from ..model._constraint import n_rows
 from ..model._standard import standard_parameter_names
 from ._printing import NumberTweaks, double  # noqa: F401  (re-exported for the emitters)
 
@@ -193,8 +194,9 @@ class Layout:
         :func:`~jaxskid.standard_parameter_names`), only for a robot with drives, ``driven`` (the names of
         the joints that have one: their friction and offset are in tau and the bias, not in C qd + Q_grav),
         and only for a floating base, ``floating_base: 1`` (``q`` has ``7 + n`` entries, velocities ``6 + n``; an
-        int, since the JAX module writes this as a Python literal), and only for ``Options(coriolis="skidy")``,
-        ``coriolis: "skidy"``."""
+        int, since the JAX module writes this as a Python literal), only for ``Options(coriolis="skidy")``,
+        ``coriolis: "skidy"``, and only for a robot with constraints, ``constraint_rows`` (their number of rows,
+        the size of ``cotangent_rows``)."""
         r = self.robot
         quantities = {n: self.eqs.quantities[n] for n in self.names}
         driven = {"driven": [r.joints[i].name for i in r.driven]} if r.driven else {}
@@ -202,6 +204,8 @@ class Layout:
             driven["floating_base"] = 1
         if self.eqs.options.coriolis != "christoffel":
             driven["coriolis"] = self.eqs.options.coriolis
+        if r.constraints:
+            driven["constraint_rows"] = n_rows(r.constraints)
         return {
             "robot": r.name,
             "joint_names": list(r.joint_names),

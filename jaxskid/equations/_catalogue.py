@@ -148,10 +148,11 @@ def _pullback_shape(args: tuple[str, ...]) -> Callable[[Robot], tuple[int, ...]]
     return lambda r: (sum(_argument_size(r, a) for a in args) + len(r.parameters),)
 
 
-def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, kinematic: bool = False,
-              constraint: bool = False) -> QuantitySpec:
+def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, needs: str = "inertia") -> QuantitySpec:
     """The pullback of ``base`` (arguments ``args``): the gradients of ``<W, base>`` with respect to its state
-    arguments and the parameters, concatenated. The runtime differentiates ``base`` with it in reverse mode."""
+    arguments and the parameters, concatenated. The runtime differentiates ``base`` with it in reverse mode.
+    ``needs`` is what ``base`` needs of the robot: ``"inertia"``, ``"end_effector"`` (a kinematic quantity of
+    the end-effectors) or ``"constraints"``."""
     wrt = ", ".join(f"d/d{a}" for a in (*args, "p"))
     return QuantitySpec(
         f"{base}_vjp", (*args, cotangent), _pullback_shape(args), _no_builder,
@@ -160,8 +161,8 @@ def _pullback(base: str, args: tuple[str, ...], cotangent: str, matrix: str, kin
         f"entries with respect to {', '.join(args)} and the parameters, concatenated (nq entries for q, 6 per "
         "end-effector for a wrench, nv for the others, then one per parameter), by a symbolic reverse sweep of its "
         f"program. It gives jax.grad through {base} at a few times the cost of {base} itself.",
-        pullback_of=base, needs_end_effector=kinematic, needs_inertia=not (kinematic or constraint),
-        needs_constraints=constraint,
+        pullback_of=base, needs_inertia=needs == "inertia", needs_end_effector=needs == "end_effector",
+        needs_constraints=needs == "constraints",
     )
 
 
@@ -471,12 +472,12 @@ _CATALOGUE = (
     _pullback("coriolis_matrix", ("q", "qd"), "cotangent_matrix", "C(q, qd)"),
     _pullback("gravity_torques", ("q",), "cotangent", "Q_grav(q)"),
     _pullback("coriolis_torques", ("q", "qd"), "cotangent", "C(q, qd) qd"),
-    _pullback("ee_pose", ("q",), "cotangent_pose", "C_e(q)", kinematic=True),
-    _pullback("ee_hybrid_twist", ("q", "qd"), "cotangent_ee", "V_e^h(q, qd)", kinematic=True),
-    _pullback("external_torques", ("q", "wrench"), "cotangent", "Q_ext(q, W_e)", kinematic=True),
-    _pullback("constraint_jacobian", ("q",), "cotangent_constraint", "A(q)", constraint=True),
-    _pullback("constraint_drift", ("q", "qd"), "cotangent_rows", "Adot(q, qd) qd", constraint=True),
-    _pullback("constraint_residual", ("q",), "cotangent_rows", "phi(q)", constraint=True),
+    _pullback("ee_pose", ("q",), "cotangent_pose", "C_e(q)", needs="end_effector"),
+    _pullback("ee_hybrid_twist", ("q", "qd"), "cotangent_ee", "V_e^h(q, qd)", needs="end_effector"),
+    _pullback("external_torques", ("q", "wrench"), "cotangent", "Q_ext(q, W_e)", needs="end_effector"),
+    _pullback("constraint_jacobian", ("q",), "cotangent_constraint", "A(q)", needs="constraints"),
+    _pullback("constraint_drift", ("q", "qd"), "cotangent_rows", "Adot(q, qd) qd", needs="constraints"),
+    _pullback("constraint_residual", ("q",), "cotangent_rows", "phi(q)", needs="constraints"),
 )
 
 QUANTITIES: MappingProxyType[str, QuantitySpec] = MappingProxyType({spec.name: spec for spec in _CATALOGUE})

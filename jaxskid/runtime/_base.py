@@ -32,6 +32,7 @@ def metadata_fields(meta: Mapping) -> dict:
         signatures={k: (m["args"], m["shape"]) for k, m in meta["quantities"].items()},
         driven=meta.get("driven", ()), floating_base=meta.get("floating_base", False),
         standard_names=meta.get("standard_names", ()), coriolis=meta.get("coriolis", "christoffel"),
+        constraint_rows=meta.get("constraint_rows", 0),
     )
 
 
@@ -61,6 +62,7 @@ class QuantitySet:
         standard_names: the names of the regressor's columns (:func:`jaxskid.standard_parameter_names`).
         coriolis: the factorisation of ``coriolis_matrix`` (:class:`jaxskid.Options`): ``"christoffel"`` or
             ``"skidy"``.
+        constraint_rows: the number of rows of the robot's constraints, the size of ``cotangent_rows``.
         checks: whether top-level calls check their inputs (:mod:`jaxskid.runtime._checks`): NaN or inf in
             a state or a parameter, parameter values that are not numbers, masses and inertias no rigid body
             has. Inside a caller's ``jit``, ``grad`` or ``vmap`` nothing is checked, unless ``"debug"``
@@ -86,6 +88,7 @@ class QuantitySet:
         checks: bool | str = True,
         standard_names: Sequence[str] = (),
         coriolis: str = "christoffel",
+        constraint_rows: int = 0,
     ):
         self.robot_name: str = robot_name
         self.driven: tuple[str, ...] = tuple(driven)
@@ -107,6 +110,8 @@ class QuantitySet:
         self.standard_names: tuple[str, ...] = tuple(standard_names)
         """The standard parameters' names, the regressor's columns (``{link}_m``, ..., then the drives'); empty
         for a module generated before they were recorded."""
+        self.constraint_rows: int = int(constraint_rows)
+        """The number of rows of the robot's constraints (0: none)."""
         self.coriolis: str = coriolis
         """The factorisation of ``coriolis_matrix``: ``"christoffel"`` (``dM/dt - 2C`` skew) or ``"skidy"``."""
         self.checks: bool | str = checks_mode(checks)
@@ -140,17 +145,18 @@ class QuantitySet:
     def argument_shape(self, arg: str) -> tuple[int, ...]:
         """The shape of one state of the argument ``arg``: ``(n_ee, 6)`` for the wrenches and ``cotangent_ee``,
         ``(n_ee, 4, 4)`` for ``cotangent_pose``, ``(nq,)`` for ``q``, ``(nv,)`` for the velocity-space ones (``qd``,
-        ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``, the constraint Jacobian's
-        ``(m, nv)`` for ``cotangent_constraint`` and ``(m,)`` for ``cotangent_rows``."""
+        ``qdd``, ..., ``tau``, ``cotangent``), ``(nv, nv)`` for ``cotangent_matrix``, ``(m, nv)``
+        for ``cotangent_constraint`` and ``(m,)`` for ``cotangent_rows`` (m: :attr:`constraint_rows`)."""
         if arg.startswith("wrench") or arg == "cotangent_ee":
             return (len(self.end_effectors), 6)
         if arg == "cotangent_pose":
             return (len(self.end_effectors), 4, 4)
         if arg == "cotangent_matrix":
             return (self.nv, self.nv)
-        if arg in ("cotangent_constraint", "cotangent_rows"):  # the constraint Jacobian's shape, or its rows
-            shape = tuple(self.signature("constraint_jacobian")[1])
-            return shape if arg == "cotangent_constraint" else shape[:1]
+        if arg == "cotangent_constraint":
+            return (self.constraint_rows, self.nv)
+        if arg == "cotangent_rows":
+            return (self.constraint_rows,)
         return (self.nq,) if arg == "q" else (self.nv,)
 
     def default_params(self) -> dict[str, float]:
