@@ -449,25 +449,53 @@ def versus(fn, args, batch: int, reference: dict, key: str, order) -> dict:
     return row
 
 
-def rollout(log: Log, urdf_dir: Path, batch: int, form: str) -> None:
-    """The section ``rollout``: z1, :data:`STEPS` RK4 steps of :data:`DT`, batches 1, 1024 and ``batch``."""
-    dyn = lowered(log, urdf_dir, "z1", form, "rollout")
+ROLLOUTS = {"one kernel": {}, "one kernel (float32)": {}, "one kernel (32 threads)": {"JAXSKID_CUDA_THREADS": "32"},
+            "one kernel (128 threads)": {"JAXSKID_CUDA_THREADS": "128"}, "kernels per step": None}
+"""How the ``rollout`` section's rollouts run, all in the form ``--forms`` gives first: the rollout one CUDA kernel
+and its gradient another (:mod:`jaxskid.runtime._cuda_rollout`), with the settings given (and float32 states where
+the name says so), or (None) a loop of steps, with :meth:`jaxskid.Dynamics.cuda_rollout` turned off on its
+lowering. ``--rollouts`` chooses among them."""
+
+
+def rollout(log: Log, urdf_dir: Path, batch: int, form: str, kinds) -> None:
+    """The section ``rollout``: z1, :data:`STEPS` RK4 steps of :data:`DT`, batches 1, 1024 and ``batch``, each
+    way ``kinds`` names of :data:`ROLLOUTS`."""
+    for kind in kinds:
+        settings = ROLLOUTS[kind]
+        dyn = lowered(log, urdf_dir, "z1", form, "rollout")
+        if dyn is not None and settings is None:
+            dyn.cuda_rollout = lambda steps: None
+        saved = {k: os.environ.get(k) for k in settings or {}}
+        os.environ.update(settings or {})
+        try:
+            rollouts(log, dyn, batch, form, kind)
+        finally:
+            for k, v in saved.items():
+                os.environ.pop(k) if v is None else os.environ.update({k: v})
+
+
+def rollouts(log: Log, dyn, batch: int, form: str, kind: str) -> None:
     batches = sorted({1, min(1024, batch), batch})
     if dyn is None:
         for b in batches:
-            unlowered(log, "rollout", robot="z1", steps=STEPS, batch=b, form=form)
+            unlowered(log, "rollout", robot="z1", steps=STEPS, batch=b, form=form, rollout=kind)
         return
     n = dyn.n_dof
     t = DT * np.arange(STEPS)[:, None]
     u = jnp.asarray(2.0 * np.sin(2 * np.pi * (1 + np.arange(n)) * t / (STEPS * DT)))
     goal = jnp.concatenate([jnp.full(n, 0.3), jnp.zeros(n)])
     runs = dyn.report().get("forward_dynamics")
+    if kind.startswith("one kernel"):
+        runs = "rollout kernels" if dyn.cuda_rollout(STEPS) is not None else f"no rollout kernel; {runs}"
     for b in batches:
-        ids = {"section": "rollout", "robot": "z1", "steps": STEPS, "batch": b, "form": form, "runs": runs}
+        dtype = jnp.float32 if "float32" in kind else jnp.float64
+        ids = {"section": "rollout", "robot": "z1", "steps": STEPS, "batch": b, "form": form, "rollout": kind,
+               "dtype": jnp.dtype(dtype).name, "runs": runs}
         x0 = jnp.zeros(2 * n).at[:n].set(0.1)
         if b > 1:
             x0 = x0 + jnp.concatenate([0.05 * states(1, b, n, seed=b)[0], jnp.zeros((b, n))], axis=1)
-        case(log, log.fits("rollout"), lambda x0=x0, b=b: rollout_case(dyn, x0, u, goal, b), **ids)
+        case(log, log.fits("rollout"),
+             lambda x0=x0, b=b: rollout_case(dyn, x0.astype(dtype), u.astype(dtype), goal.astype(dtype), b), **ids)
 
 
 def rollout_case(dyn, x0, u, goal, batch: int) -> dict:
@@ -476,10 +504,14 @@ def rollout_case(dyn, x0, u, goal, batch: int) -> dict:
     def loss(p):
         return jnp.mean((jaxskid.rollout(dyn, x0, u, DT, STEPS, params=p).x - goal) ** 2)
 
-    p0 = dyn.param_vector()
-    loss_first, loss_time = timed(jax.jit(loss), p0)
-    grad_first, grad_time = timed(jax.jit(jax.grad(loss)), p0)
-    return {"loss_ms": 1e3 * loss_time, "grad_ms": 1e3 * grad_time, "ratio": grad_time / loss_time,
+    p0 = dyn.param_vector(dtype=x0.dtype)
+    loss_fn, grad_fn = jax.jit(loss), jax.jit(jax.grad(loss))
+    loss_first, loss_time = timed(loss_fn, p0)
+    grad_first, grad_time = timed(grad_fn, p0)
+    weights = jnp.asarray(np.random.default_rng(7).normal(size=len(p0)))
+    # the values, for comparing the ways of ROLLOUTS in one run
+    checks = {"loss_value": float(loss_fn(p0)), "grad_dot_w": float(weights @ grad_fn(p0))}
+    return {"loss_ms": 1e3 * loss_time, "grad_ms": 1e3 * grad_time, "ratio": grad_time / loss_time, **checks,
             "loss_first_s": loss_first, "grad_first_s": grad_first, "n_params": len(p0),
             "loss_ns_per_state_step": 1e9 * loss_time / (batch * STEPS),
             "grad_ns_per_state_step": 1e9 * grad_time / (batch * STEPS)}
@@ -519,7 +551,9 @@ TABLES = {  # section: (column, key, format); the columns with a format but _run
              ("the same, float32", "max_abs_diff_f32", "{:.1e}".format)],
     "variants": [("quantity", "quantity", None), ("kernel build", "variant", None), ("first call", "first_s", S),
                  ("per state", "per_state_ns", NS)],
-    "rollout": [("batch", "batch", None), ("form", "form", None), ("runs", "runs", _runs), ("loss", "loss_ms", MS),
+    "rollout": [("batch", "batch", None), ("form", "form", None), ("rollout", "rollout", None), ("dtype", "dtype", None),
+                ("runs", "runs", _runs),
+                ("loss", "loss_ms", MS),
                 ("gradient", "grad_ms", MS), ("ratio", "ratio", "{:.1f}x".format),
                 ("first call loss", "loss_first_s", S), ("first call gradient", "grad_first_s", S),
                 ("loss per state-step", "loss_ns_per_state_step", NS),
@@ -568,6 +602,7 @@ def arguments() -> argparse.Namespace:
     parser.add_argument("--shares", default=SHARES, help="fraction of the budget after which quantities, adam and "
                         "rollout each start no more cases (what a section leaves goes to the next)")
     parser.add_argument("--forms", default="cuda,jax", help="in this order; the rollout runs the first")
+    parser.add_argument("--rollouts", default=",".join(ROLLOUTS), help="the ways the rollout section runs")
     parser.add_argument("--urdf-dir", type=Path, default=ROOT / ".gpu" / "urdf")
     parser.add_argument("--prepare", action="store_true", help="only write the URDF copies into --urdf-dir")
     parser.add_argument("--derive-only", action="store_true", help="only fill JAXSKID_CACHE_DIR")
@@ -575,7 +610,9 @@ def arguments() -> argparse.Namespace:
                         "of earlier runs (JSON lines, each with the number of its run)")
     doc_tables.add_option(parser)
     args = parser.parse_args()
-    args.sections, args.forms = args.sections.split(","), args.forms.split(",")
+    args.sections, args.forms, args.rollouts = args.sections.split(","), args.forms.split(","), args.rollouts.split(",")
+    if not set(args.rollouts) <= set(ROLLOUTS):
+        parser.error(f"--rollouts: choose from {', '.join(ROLLOUTS)}")
     if not set(args.sections) <= set(SECTIONS) or not set(args.forms) <= {"cuda", "jax"}:
         parser.error(f"--sections: choose from {', '.join(SECTIONS)}; --forms: from cuda, jax")
     try:
@@ -614,7 +651,7 @@ def main() -> None:
     if "adam" in args.sections:
         adam_section(log, args.urdf_dir, args.batch, args.forms)
     if "rollout" in args.sections:
-        rollout(log, args.urdf_dir, args.batch, args.forms[0])
+        rollout(log, args.urdf_dir, args.batch, args.forms[0], args.rollouts)
     if "variants" in args.sections:
         variants(log, args.urdf_dir, args.batch)
     if "jax" in args.sections:

@@ -109,6 +109,12 @@ class NativeBuild(Protocol):
     def cuda_handler(self) -> Path:
         """The path of the library of the XLA FFI handler that launches the CUDA kernels."""
 
+    def cuda_rollout_image(self, vectors: Mapping[str, VectorKernel | None], n: int, n_params: int, steps: int,
+                           dtype: str, arch: str, backward: bool) -> tuple[bytes, int]:
+        """The compiled CUDA kernel of an RK4 rollout of ``steps`` steps under held torques, or of its backward
+        pass (:mod:`jaxskid.lowering._cuda_rollout`), from the vector programs ``vectors`` of a robot of ``n``
+        velocities and ``n_params`` parameters, and its threads per block."""
+
 
 def _identity(x):
     return x

@@ -62,6 +62,11 @@ CHUNK = 512
 _IO = {"float32": "float", "float64": "double"}
 
 
+def split_sizes() -> tuple[int, int]:
+    """``(long, chunk)``: :data:`LONG` and :data:`CHUNK`, or ``JAXSKID_CUDA_LONG`` and ``JAXSKID_CUDA_CHUNK``."""
+    return tuple(int(os.environ.get(f"JAXSKID_CUDA_{k}") or d) for k, d in (("LONG", LONG), ("CHUNK", CHUNK)))
+
+
 def kernel_source(native: NativeSource, name: str, io: str = "float64") -> str | None:
     """The CUDA source of the quantity ``name`` of ``native`` for inputs and result of dtype ``io``
     (``"float32"`` or ``"float64"``), exporting ``jaxskid_kernel(jaxskid_job)``; None where the quantity has
@@ -71,7 +76,7 @@ def kernel_source(native: NativeSource, name: str, io: str = "float64") -> str |
     if kernel is None or entry is None:
         return None
     _, sizes, _, n_out, _ = entry
-    long, chunk = (int(os.environ.get(f"JAXSKID_CUDA_{k}") or d) for k, d in (("LONG", LONG), ("CHUNK", CHUNK)))
+    long, chunk = split_sizes()
     functions = _chunked("body", kernel, "D", set(kernel.zeros), io="io_t", long=long, chunk_size=chunk, huge=None)
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n",
@@ -134,17 +139,17 @@ def _check(lib, status: int, what: str, log: str = "") -> None:
                          + (f"\n{log[-3000:]}" if log else ""))
 
 
-def compile_kernel(source: str, arch: str = "sm_90", root: Path | None = None) -> bytes:
+def compile_kernel(source: str, arch: str = "sm_90", root: Path | None = None, level: str = "1") -> bytes:
     """The compiled ``source``: a cubin for a real architecture (``"sm_90"``), or PTX for a virtual one
     (``"compute_90"``: what the tests check where no GPU is), read from ``root`` when this source, target and
-    NVRTC were compiled before. ``JAXSKID_PTXAS_O`` sets ptxas's optimisation level (1: on an H200 neither
-    level ran the G1's M and C faster in both of two runs, and ``-O1`` built the Coriolis matrix in less time;
-    ``benchmarks/gpu.py``'s ``variants``).
+    NVRTC were compiled before. ``level`` is ptxas's optimisation level, unless ``JAXSKID_PTXAS_O`` sets another
+    (1 for the quantities: on an H200 neither level ran the G1's M and C faster in both of two runs, and ``-O1``
+    built the Coriolis matrix in less time; ``benchmarks/gpu.py``'s ``variants``).
 
     Raises:
         NvrtcError: no NVRTC, or the compiler rejected the source (the message ends with its log).
     """
-    level = os.environ.get("JAXSKID_PTXAS_O") or "1"
+    level = os.environ.get("JAXSKID_PTXAS_O") or level
     options = [f"--gpu-architecture={arch}", "--std=c++17", "-default-device", "-Xptxas", f"-O{level}"]
     key = hashlib.sha256("\0".join([source, *options, nvrtc_version()]).encode()).hexdigest()[:32]
     cubin = arch.startswith("sm_")

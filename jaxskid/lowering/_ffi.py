@@ -49,7 +49,8 @@ _TRIG = template("ffi_trig.h")
 quantity kernels' (``V``) and the backward step's (``T``; with libm per lane it spent about a third of its
 time in ``sin`` and ``cos``)."""
 
-_BACKWARD = fill(template("ffi_backward.c"), TRIG_T=fill(_TRIG, V="T"), BACKWARD_CHUNK=BACKWARD_CHUNK)
+_BACKWARD = fill(template("ffi_backward.c"), FD_BACKWARD=template("fd_backward.h"), TRIG_T=fill(_TRIG, V="T"),
+                 BACKWARD_CHUNK=BACKWARD_CHUNK)
 """The backward step of forward dynamics, ``jaxskid_fd_vjp``, with ``@LANE_FUNCTIONS@`` for the vector forms
 of the mass matrix and the inverse dynamics' vector-Jacobian product."""
 

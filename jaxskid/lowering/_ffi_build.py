@@ -18,6 +18,7 @@ from pathlib import Path
 
 from .._generated import NativeSource
 from ._cuda import compile_kernel, handler_library, kernel_source, nvrtc, threads
+from ._cuda_rollout import ROLLOUT_PTXAS, rollout_source
 from ._ffi import FFI_CFLAGS, LANES, Piece, _vector_flags, glue_parts, include_dir
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 from ._templates import fill, template
@@ -53,6 +54,13 @@ class NativeLibrary:
         """
         nvrtc()
         return handler_library(self._folder() / "cuda")
+
+    def cuda_rollout_image(self, vectors, n: int, n_params: int, steps: int, dtype: str, arch: str,
+                           backward: bool) -> tuple[bytes, int]:
+        """A rollout kernel (:func:`._cuda_rollout.rollout_source`) compiled for ``dtype`` and ``arch``, and its
+        threads per block."""
+        source = rollout_source(vectors, self.sources.stem, n, n_params, steps, dtype, backward)
+        return compile_kernel(source, arch, self._folder() / "cuda", ROLLOUT_PTXAS), threads()
 
     def _folder(self) -> Path:
         return self.root if self.root is not None else _temporary()

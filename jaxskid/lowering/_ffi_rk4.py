@@ -25,8 +25,12 @@ product (its gains and parameters, and the stage times).
 from .._tableau import RK4_TABLEAU
 from ._templates import fill, template
 
-RK4_BACKWARD = fill(template("ffi_rk4.c"), RK4_B=", ".join(map(repr, RK4_TABLEAU.b)),
-                    RK4_C=", ".join(map(repr, RK4_TABLEAU.c)))
+RK4_STEP = fill(template("rk4_backward.h"), RK4_B=", ".join(map(repr, RK4_TABLEAU.b)),
+                RK4_C=", ".join(map(repr, RK4_TABLEAU.c)))
+"""One state's RK4 backward step (``rk4_backward``, on ``backward``), shared by the CPU handlers and the GPU's
+rollout kernels (:mod:`._cuda_rollout`)."""
+
+RK4_BACKWARD = fill(template("ffi_rk4.c"), RK4_STEP=RK4_STEP)
 """The C of ``jaxskid_rk4_vjp`` and ``jaxskid_rk4fb_vjp``, after the backward step's (``backward``, ``NO``,
 ``load``, ``store``, ``parallel_for``), with the tableau of :data:`jaxskid._tableau.RK4_TABLEAU`."""
 

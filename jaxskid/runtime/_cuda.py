@@ -74,17 +74,30 @@ class CudaKernel:
         """The FFI target and attributes of a call on ``dtype`` states (compiled and registered on the first)."""
         key = np.dtype(dtype).name
         if key not in self._ids:
-            lib = _handler(self.build)
-            image, threads = self.build.cuda_image(self.name, key, architecture())
-            _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
-            sizes_c, cores_c = (ctypes.c_int64 * len(sizes))(*sizes), (ctypes.c_int64 * len(cores))(*cores)
-            zero_first = int(bool(self.build.sources.vectors[self.name].zeros))
-            kid = lib.jaxskid_cuda_register(image, len(image), len(sizes), sizes_c, cores_c, n_out, out_rank, threads,
-                                            zero_first)
-            if kid < 0:
-                raise RuntimeError(f"jaxskid: the CUDA kernel of {self.name} could not be registered")
-            self._ids[key] = kid
+            image, threads = self._image(key)
+            self._ids[key] = register(self.build, image, threads, *self._layout(), str(self))
         return TARGET, {"kernel": np.int64(self._ids[key])}
+
+    def _image(self, dtype: str) -> tuple[bytes, int]:
+        return self.build.cuda_image(self.name, dtype, architecture())
+
+    def _layout(self) -> tuple:
+        """``(sizes, cores, n_out, out_rank, zero_first)`` as :func:`register` takes them."""
+        _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
+        return sizes, cores, n_out, out_rank, bool(self.build.sources.vectors[self.name].zeros)
+
+
+def register(build: NativeBuild, image: bytes, threads: int, sizes, cores, n_out: int, out_rank: int,
+             zero_first: bool, label: str) -> int:
+    """A compiled kernel registered with the handler (``c/cuda_handler.c``): its number, the attribute ``kernel``
+    of its calls."""
+    lib = _handler(build)
+    sizes_c, cores_c = (ctypes.c_int64 * len(sizes))(*sizes), (ctypes.c_int64 * len(cores))(*cores)
+    kid = lib.jaxskid_cuda_register(image, len(image), len(sizes), sizes_c, cores_c, n_out, out_rank, threads,
+                                    int(zero_first))
+    if kid < 0:
+        raise RuntimeError(f"jaxskid: the CUDA kernel {label} could not be registered")
+    return kid
 
 
 def cuda_kernel(build: NativeBuild, name: str, label: str) -> CudaKernel | None:

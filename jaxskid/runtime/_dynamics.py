@@ -22,6 +22,7 @@ from .._errors import unknown_names, RequestError, ShapeError
 from .._generated import GPU_ONLY, GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
 from ._cuda import CudaKernel, cuda_kernel, enabled as cuda_enabled
+from ._cuda_rollout import rollout_kernels
 from ._ffi import enabled as native_enabled, library, log, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
@@ -129,7 +130,7 @@ class Dynamics(QuantitySet):
         # the switches as they were when this Dynamics was made, for its life: C kernels on CPU, CUDA on a GPU
         self._cuda = cuda_enabled()
         self._native_wanted = native_enabled() or self._cuda
-        self._cuda_kernels: dict[str, CudaKernel | None] = {}
+        self._cuda_kernels: dict[str, CudaKernel | tuple | None] = {}  # a quantity's, or a rollout's pair
         # the native libraries: each handler's library, built on first use (the kernels of GPU_ONLY on a GPU)
         self._native_build: dict[str, NativeBuild] = {}
         for lib in native:
@@ -247,6 +248,20 @@ class Dynamics(QuantitySet):
         if name not in self._cuda_kernels:
             self._cuda_kernels[name] = cuda_kernel(build, name, self.robot_name)
         return self._cuda_kernels[name]
+
+    def cuda_rollout(self, steps: int):
+        """The CUDA kernels of a rollout of ``steps`` RK4 steps under held torques and of its backward pass
+        (:mod:`jaxskid.runtime._cuda_rollout`), or None: CUDA kernels off, a floating base, no pullback of
+        inverse dynamics lowered, or the handler unavailable (logged once)."""
+        if not self._cuda or self.floating_base or "inverse_dynamics_vjp" not in self.quantities:
+            return None
+        key = f"rollout {steps}"
+        if key not in self._cuda_kernels:
+            builds = list({id(b): b for b in self._native_build.values()}.values())
+            kernels = rollout_kernels(builds, self.nv, len(self.parameters), steps)
+            usable = kernels is not None and cuda_kernel(kernels[0].build, "forward_dynamics", self.robot_name)
+            self._cuda_kernels[key] = kernels if usable else None
+        return self._cuda_kernels[key]
 
     def report(self) -> dict[str, str]:
         """How each quantity runs on this machine, ``{name: form}``: ``"native kernel"`` (generated C behind an

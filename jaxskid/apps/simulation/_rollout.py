@@ -37,6 +37,7 @@ from ...runtime._jit import forward_mode, jit, top_level, traced
 from ...runtime._free_flyer import normalize
 from ...runtime._rk4 import feedback_rk4, held_torque_rk4, hoist
 from ...runtime._constrained import Baumgarte
+from ...runtime._cuda_rollout import held_torque_rollout
 from ._field import as_controls, constraint_forces, dynamics_field, with_input
 from ._integrators import RK4, classical_rk4, fixed_step
 from ._loop import saved_loop
@@ -91,6 +92,10 @@ def _rollout_one(dyn, controller, integrator, steps, saveat, checkpoint, autodif
     record = not rows and not (saveat.t1 and not saveat.t0)  # torques the loop must keep
     # open-loop torques on a fixed base: an RK4 step whose backward pass is one native call
     one_call = constraints is None and autodiff == "reverse" and classical_rk4(integrator)
+    # on a GPU, the whole rollout one kernel and its gradient another
+    whole = held_torque_rollout(dyn, steps, batched) if rows and one_call and saveat.every == 1 else None
+    if whole is not None:
+        return whole(x0, u, p, jnp.reshape(dt, (1,))), u, z0
     fused = held_torque_rk4(dyn, batched) if rows and one_call else None
     # a stateless feedback law: its step's backward pass is one native call too
     stateless = controller is not None and u is None and not jax.tree.leaves(z0)

@@ -5,34 +5,7 @@
 #endif
 #define NR (3 * N + NP + 1)
 
-static const double rk4_b[4] = {@RK4_B@}, rk4_c[4] = {@RK4_C@};
-
-static T dot_n(const T *x, const T *y)
-{
-    T s = TLIFT(0.0);
-    for (int k = 0; k < N; k++) s += x[k] * y[k];
-    return s;
-}
-
-/* One state's step: q, qd, a the four stages' (4 N each); out = [ybar_q, ybar_qd, taubar, pbar, hbar]. */
-static void rk4_backward(const T *q, const T *qd, const T *a, const T *p, T h, const T *gq, const T *gqd, T *out)
-{
-    T *yq = out, *yqd = out + N, *tb = out + 2 * N, *pb = out + 3 * N, *hb = out + 3 * N + NP;
-    T nq[N], nqd[N], kq[N], kqd[N], o[NO];  /* nq, nqd: the cotangent of the next stage's input */
-    for (int k = 0; k < N; k++) yq[k] = gq[k], yqd[k] = gqd[k], tb[k] = TLIFT(0.0), nq[k] = nqd[k] = TLIFT(0.0);
-    for (int k = 0; k < NP; k++) pb[k] = TLIFT(0.0);
-    *hb = TLIFT(0.0);
-    for (int s = 3; s >= 0; s--) {
-        const T wb = h * TLIFT(rk4_b[s]), wc = s < 3 ? h * TLIFT(rk4_c[s + 1]) : TLIFT(0.0);
-        for (int k = 0; k < N; k++) kq[k] = wb * gq[k] + wc * nq[k], kqd[k] = wb * gqd[k] + wc * nqd[k];
-        backward(q + s * N, qd + s * N, a + s * N, kqd, p, o);  /* o = [lambda, (da/d(q, qd, p))^T kqd] */
-        for (int k = 0; k < N; k++) nq[k] = o[N + k], nqd[k] = kq[k] + o[2 * N + k];
-        *hb += TLIFT(rk4_b[s]) * (dot_n(gq, qd + s * N) + dot_n(gqd, a + s * N));
-        if (s > 0) *hb += TLIFT(rk4_c[s]) * (dot_n(nq, qd + (s - 1) * N) + dot_n(nqd, a + (s - 1) * N));
-        for (int k = 0; k < N; k++) yq[k] += nq[k], yqd[k] += nqd[k], tb[k] += o[k];
-        for (int k = 0; k < NP; k++) pb[k] += o[3 * N + k];
-    }
-}
+@RK4_STEP@
 
 /* The same under feedback: K the four stages' du/d(q, qd) (4 N 2N, row-major); out = [ybar_q, ybar_qd,
    lambda (4 N), pbar, hbar]. */
@@ -96,7 +69,8 @@ static void rk4_chunk(void *ctx, int64_t c, int slot)
     T *w[7] = {q, qd, a, p, h, gq, gqd};
     for (int64_t b = from; b < to; b += W) {
         load_lanes(j, 7, rk4_size, w, b, to);
-        rk4_backward(q, qd, a, p, h[0], gq, gqd, out);
+        for (int k = 2 * N; k < NR; k++) out[k] = TLIFT(0.0);
+        rk4_backward(q, qd, a, p, h[0], gq, gqd, out, out + N, out + 2 * N, out + 3 * N, out + 3 * N + NP);
         store_lanes(j, out, NR, b, to);
     }
 }
