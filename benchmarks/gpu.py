@@ -41,7 +41,8 @@ Sections:
   medians and the largest difference from adam's float64 result;
 - ``rollout``: the z1 arm (7 DOF with its gripper), 500 RK4 steps of 1 ms under open-loop torques, loss the
   mean squared error to a goal state; batches 1, 1024 and ``--batch``: the loss and its gradient with respect
-  to every parameter (``jax.jit(jax.grad(loss))``), their ratio, first calls and the time per state and step.
+  to every parameter (``jax.jit(jax.grad(loss))``), their ratio, first calls, the time per state and step,
+  and the values (to compare the ways), each way of :data:`ROLLOUTS` that ``--rollouts`` names.
 
 The URDF copies carry no meshes, and every joint has an ``<origin>`` (adam needs one; the G1 has a joint
 without): both libraries load the same file.
@@ -551,9 +552,8 @@ TABLES = {  # section: (column, key, format); the columns with a format but _run
              ("the same, float32", "max_abs_diff_f32", "{:.1e}".format)],
     "variants": [("quantity", "quantity", None), ("kernel build", "variant", None), ("first call", "first_s", S),
                  ("per state", "per_state_ns", NS)],
-    "rollout": [("batch", "batch", None), ("form", "form", None), ("rollout", "rollout", None), ("dtype", "dtype", None),
-                ("runs", "runs", _runs),
-                ("loss", "loss_ms", MS),
+    "rollout": [("batch", "batch", None), ("form", "form", None), ("rollout", "rollout", None),
+                ("dtype", "dtype", None), ("runs", "runs", _runs), ("loss", "loss_ms", MS),
                 ("gradient", "grad_ms", MS), ("ratio", "ratio", "{:.1f}x".format),
                 ("first call loss", "loss_first_s", S), ("first call gradient", "grad_first_s", S),
                 ("loss per state-step", "loss_ns_per_state_step", NS),

@@ -110,10 +110,37 @@ class NativeBuild(Protocol):
         """The path of the library of the XLA FFI handler that launches the CUDA kernels."""
 
     def cuda_rollout_image(self, vectors: Mapping[str, VectorKernel | None], n: int, n_params: int, steps: int,
-                           dtype: str, arch: str, backward: bool) -> tuple[bytes, int]:
-        """The compiled CUDA kernel of an RK4 rollout of ``steps`` steps under held torques, or of its backward
-        pass (:mod:`jaxskid.lowering._cuda_rollout`), from the vector programs ``vectors`` of a robot of ``n``
-        velocities and ``n_params`` parameters, and its threads per block."""
+                           dtype: str, arch: str, part: str) -> tuple[bytes, int]:
+        """The compiled CUDA kernel ``part`` (:data:`ROLLOUT_PARTS`) of an RK4 rollout of ``steps`` steps under
+        held torques (:mod:`jaxskid.lowering._cuda_rollout`), from the vector programs ``vectors`` of a robot of
+        ``n`` velocities and ``n_params`` parameters, and its threads per block."""
+
+
+ROLLOUT_PARTS = ("forward", "adjoint", "parameters")
+"""A rollout's CUDA kernels (:mod:`jaxskid.lowering._cuda_rollout`): the rollout, the adjoint recursion of its
+gradient, and the parameters' part of the gradient, which needs no recursion and runs a thread per
+:data:`ROLLOUT_STRIDE` steps of each rollout."""
+
+ROLLOUT_STRIDE = 8
+"""Steps per thread of the ``parameters`` kernel."""
+
+
+def rollout_layout(part: str, n: int, n_params: int, steps: int) -> tuple:
+    """``(sizes, cores, n_out, out_rank)`` of a rollout kernel's inputs and result, as the CUDA handler registers a
+    kernel (``h`` and the block number ``j`` are arrays of one entry):
+
+    * ``forward``: ``x0 (2n), u (steps, n), p, h -> x (steps + 1, 2n)``;
+    * ``adjoint``: ``x (steps + 1, 2n), u, p, h, g (like x) -> [x0bar (2n), ubar (steps n), hbar, lambda
+      (steps 4n)]``, ``lambda`` each stage's cotangent of its torque;
+    * ``parameters``: ``x, u, lambda (steps, 4n), p, h, j -> pbar (n_params)`` over the steps
+      ``[j ROLLOUT_STRIDE, (j + 1) ROLLOUT_STRIDE)``.
+    """
+    states = 2 * n * (steps + 1)
+    if part == "forward":
+        return (2 * n, steps * n, n_params, 1), (1, 2, 1, 1), states, 2
+    if part == "adjoint":
+        return (states, steps * n, n_params, 1, states), (2, 2, 1, 1, 2), 2 * n + steps * n + 1 + 4 * steps * n, 1
+    return (states, steps * n, 4 * steps * n, n_params, 1, 1), (2, 2, 2, 1, 1, 0), n_params, 1
 
 
 def _identity(x):

@@ -2,7 +2,7 @@
 is: their source compiles with NVRTC (to PTX, float64 and float32), the same source built as C for the host
 integrates what the JAX rollout integrates and pulls back what ``jax.vjp`` of it pulls back, at 1e-12, over a
 batch of two axes with torques, parameters and steps shared along some of them (the indexing each GPU thread
-does); and a rollout lowered for CUDA calls the two kernels, batch and all, and nothing else of the dynamics."""
+does); and a rollout lowered for CUDA calls the kernels, batch and all, and nothing else of the dynamics."""
 
 import jax
 import jax.numpy as jnp
@@ -12,6 +12,7 @@ import jaxskid
 from helpers import ROBOTS_DIR, load
 from jaxskid.lowering import _cuda, _cuda_rollout
 from jaxskid.runtime._cuda import TARGET
+from jaxskid._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE
 from jaxskid.runtime._cuda_rollout import rollout_kernels
 
 STEPS = 6
@@ -24,10 +25,10 @@ def _builds(dyn):
 def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
     dyn = jaxskid.lower(load("panda7"), ["forward_dynamics"])
     n, n_params = dyn.nv, len(dyn.parameters)
-    forward, backward = rollout_kernels(_builds(dyn), n, n_params, STEPS)
-    for kernel in (forward, backward):
+    kernels = dict(zip(ROLLOUT_PARTS, rollout_kernels(_builds(dyn), n, n_params, STEPS)))
+    for part, kernel in kernels.items():
         for io in ("float64", "float32"):
-            source = _cuda_rollout.rollout_source(kernel.vectors, "panda", n, n_params, STEPS, io, kernel.backward)
+            source = _cuda_rollout.rollout_source(kernel.vectors, "panda", n, n_params, STEPS, io, part)
             ptx = _cuda.compile_kernel(source, "compute_90").decode()
             assert ".entry jaxskid_kernel" in ptx and ".f64" in ptx
     rng = np.random.default_rng(0)
@@ -35,15 +36,16 @@ def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
     x0, u = rng.uniform(-0.5, 0.5, (2, 3, 2 * n)), rng.uniform(-5, 5, (3, STEPS, n))
     p, h = np.asarray(dyn.param_vector()), np.array([0.01, 0.02]).reshape(2, 1, 1)
 
-    def run(kernel, inputs, shape):
+    def run(part, inputs, shape):
+        kernel = kernels[part]
         lib = _cuda.host_library(_cuda_rollout.rollout_source(kernel.vectors, "panda", n, n_params, STEPS,
-                                                              backward=kernel.backward), tmp_path)
+                                                              part=part), tmp_path)
         _, cores, _, out_rank, _ = kernel._layout()
-        out = np.full((2, 3, *shape), np.nan)
+        out = np.full(shape, np.nan)
         _cuda.run_on_host(lib, inputs, cores, out, out_rank)
         return out
 
-    x = run(forward, [x0, u, p, h], (STEPS + 1, 2 * n))
+    x = run("forward", [x0, u, p, h], (2, 3, STEPS + 1, 2 * n))
 
     def one(x0, u, p, h):
         return jaxskid.rollout(dyn, x0, u, h[0], STEPS, params=p, autodiff="reverse").x
@@ -54,7 +56,13 @@ def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
     want = batched(lambda x0, u, p, h, _: one(x0, u, p, h))(x0, u, p, h.reshape(2, 1), x0)
     np.testing.assert_allclose(x, want, rtol=0, atol=1e-12 * np.abs(want).max())
     g = rng.normal(size=x.shape)
-    bar = run(backward, [x, u, p, h, g], (2 * n + STEPS * n + n_params + 1,))
+    adjoint = run("adjoint", [x, u, p, h, g], (2, 3, 2 * n + STEPS * n + 1 + 4 * STEPS * n))
+    cut = 2 * n + STEPS * n
+    lam = np.ascontiguousarray(adjoint[..., cut + 1:]).reshape(2, 3, 1, STEPS, 4 * n)
+    blocks = -(-STEPS // ROLLOUT_STRIDE)  # the steps in blocks, each a thread: batch (2, 3, blocks)
+    pbar = run("parameters", [x[:, :, None], u[:, None], lam, p, h[..., None], np.arange(float(blocks))],
+               (2, 3, blocks, n_params)).sum(axis=2)
+    bar = np.concatenate([adjoint[..., :cut], pbar, adjoint[..., cut:cut + 1]], axis=-1)
 
     def pullback(x0, u, p, h, g):
         return jnp.concatenate([c.ravel() for c in jax.vjp(one, x0, u, p, h)[1](g)])
@@ -67,7 +75,8 @@ def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
 
 def test_programs_for_a_gpu_call_the_rollout_kernels(monkeypatch, tmp_path):
     """With CUDA kernels on, a batched rollout under held torques is one call of the forward kernel, and its
-    gradient with respect to the parameters adds one call of the backward kernel: no loop over the steps."""
+    gradient with respect to the parameters adds the adjoint and the parameters' kernels: no loop over the
+    steps."""
     import jaxskid._api
     import jaxskid.runtime._dynamics
 
@@ -90,4 +99,4 @@ def test_programs_for_a_gpu_call_the_rollout_kernels(monkeypatch, tmp_path):
     assert "stablehlo.while" not in text
     text = exported(lambda x0: jax.grad(loss, argnums=1)(x0, dyn.param_vector()))
     calls = [line for line in text.splitlines() if "custom_call" in line]
-    assert len(calls) == 2 and all(TARGET in line for line in calls) and "stablehlo.while" not in text
+    assert len(calls) == 3 and all(TARGET in line for line in calls) and "stablehlo.while" not in text

@@ -1,13 +1,15 @@
-"""A fixed-base robot's RK4 rollout under held torques as one CUDA kernel, and its backward pass as another: one
+"""A fixed-base robot's RK4 rollout under held torques as one CUDA kernel, and its gradient as two more: one
 rollout per thread, every step inside the kernel.
 
 On a GPU a rollout written as a loop of XLA operations launches kernels at every step (a few for each of the
 four stages): a batch of one rollout waits on launches, and a large batch reads and writes its states between
 them. Here each thread integrates its rollout from ``x0`` under the torque rows ``u`` with the programs of
-forward dynamics, and writes every state; the backward pass recomputes each step's four stages from its saved
-state, from the last step, and runs the same RK4 backward step as the CPU's one-call step
+forward dynamics, and writes every state (``forward``). The ``adjoint`` recomputes each step's four stages from
+its saved state, from the last step, and runs the same RK4 backward step as the CPU's one-call step
 (``c/rk4_backward.h`` on ``c/fd_backward.h``: the mass matrix factored, then the pullback of inverse dynamics),
-accumulating the cotangents of ``x0``, the torques, the parameters and the step.
+accumulating the cotangents of ``x0``, the torques and the step, and writing each stage's lambda. The
+``parameters`` kernel takes those lambdas and sums the pullback's parameter part over blocks of steps, a thread
+each: that sum needs no recursion, and kept out of the adjoint it leaves the adjoint half the stack.
 
 :func:`rollout_source` writes the source, the quantity kernels' template (``c/cuda_kernel.cu``) around
 ``c/cuda_rollout.cu``; it compiles with NVRTC like theirs (:func:`jaxskid.lowering._cuda.compile_kernel`) and as
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from .._generated import VectorKernel
+from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, VectorKernel, rollout_layout
 from ._cuda import _IO, split_sizes, threads
 from ._ffi import Piece, _chunked
 from ._ffi_rk4 import RK4_STEP
@@ -40,13 +42,10 @@ def programs_usable(vectors: Mapping[str, VectorKernel | None]) -> bool:
 
 
 def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int, n_params: int, steps: int,
-                   io: str = "float64", backward: bool = False) -> str:
-    """The CUDA source of ``steps`` RK4 steps of a robot of ``n`` velocities and ``n_params`` parameters
-    (inputs and results of dtype ``io``), exporting ``jaxskid_kernel(jaxskid_job)`` as the quantity kernels do:
-
-    * forward: ``x0 (2n), u (steps, n), p, h (1) -> x (steps + 1, 2n)``;
-    * ``backward``: ``x (steps + 1, 2n), u, p, h, g (steps + 1, 2n) -> [x0bar (2n), ubar (steps n), pbar, hbar]``.
-    """
+                   io: str = "float64", part: str = "forward") -> str:
+    """The CUDA source of the kernel ``part`` (:func:`jaxskid._generated.rollout_layout`) of ``steps`` RK4 steps
+    of a robot of ``n`` velocities and ``n_params`` parameters, inputs and results of dtype ``io``, exporting
+    ``jaxskid_kernel(jaxskid_job)`` as the quantity kernels do."""
     if not programs_usable(vectors):
         raise ValueError("a rollout kernel needs the vector programs of " + ", ".join(q for q, _ in PROGRAMS.values()))
     text, (long, chunk) = [], split_sizes()
@@ -55,13 +54,11 @@ def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int
         text += [p.text() if isinstance(p, Piece) else p for p in pieces]
     n_vjp = sum(s.kind == "output" for s in vectors["inverse_dynamics_vjp"].statements)
     functions = fill(template("cuda_rollout.cu"), STEM=stem, STEPS=steps, N=n, NP=n_params, NV=n_vjp,
-                     PROGRAMS="".join(text), FD_BACKWARD=template("fd_backward.h"), RK4_STEP=RK4_STEP)
-    n_in = 5 if backward else 4
-    call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(n_in))
-    n_out = 2 * n + steps * n + n_params + 1 if backward else (steps + 1) * 2 * n
+                     STRIDE=ROLLOUT_STRIDE, PROGRAMS="".join(text), FD_BACKWARD=template("fd_backward.h"),
+                     RK4_STEP=RK4_STEP)
+    sizes, _, n_out, _ = rollout_layout(part, n, n_params, steps)
+    call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n#define JAXSKID_IO_DOUBLE {int(io == 'float64')}\n"
-                    f"#define JAXSKID_BACKWARD {int(backward)}\n",
-                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=stem,
-                         NAME="rollout backward pass" if backward else "rollout", FUNCTIONS=functions, N_IN=n_in,
-                         CALL=call, N_OUT=n_out, THREADS=threads())])
-
+                    f"#define JAXSKID_BACKWARD {ROLLOUT_PARTS.index(part)}\n",
+                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=stem, NAME=f"rollout ({part})",
+                         FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])

@@ -56,10 +56,10 @@ class NativeLibrary:
         return handler_library(self._folder() / "cuda")
 
     def cuda_rollout_image(self, vectors, n: int, n_params: int, steps: int, dtype: str, arch: str,
-                           backward: bool) -> tuple[bytes, int]:
+                           part: str) -> tuple[bytes, int]:
         """A rollout kernel (:func:`._cuda_rollout.rollout_source`) compiled for ``dtype`` and ``arch``, and its
         threads per block."""
-        source = rollout_source(vectors, self.sources.stem, n, n_params, steps, dtype, backward)
+        source = rollout_source(vectors, self.sources.stem, n, n_params, steps, dtype, part)
         return compile_kernel(source, arch, self._folder() / "cuda", ROLLOUT_PTXAS), threads()
 
     def _folder(self) -> Path:

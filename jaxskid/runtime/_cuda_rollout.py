@@ -1,15 +1,15 @@
-"""A rollout under held torques as one CUDA kernel on a GPU, its gradient as another
+"""A rollout under held torques as one CUDA kernel on a GPU, its gradient as two more
 (:mod:`jaxskid.lowering._cuda_rollout`): :func:`held_torque_rollout` is the whole rollout of a fixed-base robot
-under classical RK4, with a ``jax.custom_vjp`` whose backward pass is the second kernel.
+under classical RK4, with a ``jax.custom_vjp`` whose backward pass is the adjoint kernel (the recursion from the
+last step) and then the parameters' kernel (a thread per block of steps: that part needs no recursion).
 
 Written as a ``lax.scan`` of steps, a rollout on a GPU launches several kernels per step, and a gradient about
 as many again in its backward loop: a batch of one rollout is bound by launches, a large one by the states
-written and read between them. Each kernel here runs all steps of one rollout in one thread.
+written and read between them. The forward and adjoint kernels run all steps of one rollout in one thread.
 
 Elsewhere than on a CUDA GPU, and for complex inputs and derivatives of the gradient, the same rollout runs as
 the scan of :func:`jaxskid.runtime._rk4.held_torque_rk4` steps (what the kernels replace; their fallback).
 """
-
 from __future__ import annotations
 
 import logging
@@ -18,8 +18,9 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
+from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, rollout_layout
 from ._cuda import CudaKernel, architecture
-from ._ffi import native_call
+from ._ffi import ffi_kernel, native_call, platform_kernel
 from ._rk4 import held_torque_rk4
 
 log = logging.getLogger("jaxskid")
@@ -29,28 +30,24 @@ PROGRAMS = ("forward_dynamics", "mass_matrix", "inverse_dynamics_vjp")
 
 
 class RolloutKernel(CudaKernel):
-    """The rollout kernel (or its ``backward`` pass) of ``steps`` steps of a robot of ``n`` velocities and
-    ``n_params`` parameters, from the vector programs ``vectors``, compiled by ``build``."""
+    """The rollout kernel ``part`` (:data:`jaxskid._generated.ROLLOUT_PARTS`) of ``steps`` steps of a robot of
+    ``n`` velocities and ``n_params`` parameters, from the vector programs ``vectors``, compiled by ``build``."""
 
-    def __init__(self, build, vectors, n: int, n_params: int, steps: int, backward: bool):
-        super().__init__(build, "rollout backward pass" if backward else "rollout")
-        self.vectors, self.n, self.n_params, self.steps, self.backward = vectors, n, n_params, steps, backward
+    def __init__(self, build, vectors, n: int, n_params: int, steps: int, part: str):
+        super().__init__(build, f"rollout ({part})")
+        self.vectors, self.n, self.n_params, self.steps, self.part = vectors, n, n_params, steps, part
 
     def _image(self, dtype: str) -> tuple[bytes, int]:
         return self.build.cuda_rollout_image(self.vectors, self.n, self.n_params, self.steps, dtype, architecture(),
-                                             self.backward)
+                                             self.part)
 
     def _layout(self) -> tuple:
-        n, steps, states = self.n, self.steps, 2 * self.n * (self.steps + 1)
-        if self.backward:  # x, u, p, h, g -> [x0bar, ubar, pbar, hbar]
-            n_out = 2 * n + steps * n + self.n_params + 1
-            return (states, steps * n, self.n_params, 1, states), (2, 2, 1, 1, 2), n_out, 1, False
-        return (2 * n, steps * n, self.n_params, 1), (1, 2, 1, 1), states, 2, False  # x0, u, p, h -> x
+        return (*rollout_layout(self.part, self.n, self.n_params, self.steps), False)
 
 
-def rollout_kernels(builds, n: int, n_params: int, steps: int) -> tuple[RolloutKernel, RolloutKernel] | None:
-    """The forward and backward rollout kernels from a lowering's native libraries ``builds``, or None where they
-    lack a program of :data:`PROGRAMS`."""
+def rollout_kernels(builds, n: int, n_params: int, steps: int) -> tuple[RolloutKernel, ...] | None:
+    """The rollout kernels of :data:`jaxskid._generated.ROLLOUT_PARTS` from a lowering's native libraries
+    ``builds``, or None where they lack a program of :data:`PROGRAMS`."""
     vectors = {}
     for build in builds:
         vectors.update({k: v for k, v in build.sources.vectors.items() if v is not None})
@@ -58,20 +55,21 @@ def rollout_kernels(builds, n: int, n_params: int, steps: int) -> tuple[RolloutK
     if owner is None or any(name not in vectors for name in PROGRAMS):
         return None
     vectors = {name: vectors[name] for name in PROGRAMS}
-    return tuple(RolloutKernel(owner, vectors, n, n_params, steps, backward) for backward in (False, True))
+    return tuple(RolloutKernel(owner, vectors, n, n_params, steps, part) for part in ROLLOUT_PARTS)
 
 
 def held_torque_rollout(dyn, steps: int, batched: bool) -> Callable | None:
     """``rollout(x0, u, p, h) -> x``: ``steps`` RK4 steps of ``h[0]`` from ``x0 = (q, qd)`` under the torque rows
     ``u (steps, n)``, every state ``(steps + 1, 2n)``; its reverse-mode derivative with respect to all four is the
-    backward kernel. None where :meth:`jaxskid.Dynamics.cuda_rollout` has no kernels (not on a CUDA GPU, a
-    floating base, no pullback of inverse dynamics lowered). ``batched``: whether it will be mapped with
-    ``jax.vmap`` (the fallback's steps)."""
+    adjoint kernel, then the parameters' kernel on the adjoint's stage cotangents. None where
+    :meth:`jaxskid.Dynamics.cuda_rollout` has no kernels (not on a CUDA GPU, a floating base, no pullback of
+    inverse dynamics lowered). ``batched``: whether it will be mapped with ``jax.vmap`` (the fallback's steps)."""
     kernels = dyn.cuda_rollout(steps)
     step = None if kernels is None else held_torque_rk4(dyn, batched)
     if step is None:
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
+    blocks = -(-steps // ROLLOUT_STRIDE)
 
     def plain(x0, u, p, h):
         def one(x, tau):
@@ -83,9 +81,19 @@ def held_torque_rollout(dyn, steps: int, batched: bool) -> Callable | None:
     def plain_backward(x, u, p, h, g):
         return jnp.concatenate([c.ravel() for c in jax.vjp(plain, x[0], u, p, h)[1](g)])
 
+    adjoint = ffi_kernel(kernels[1], (rollout_layout("adjoint", n, n_params, steps)[2],), "expand_dims")
+    parameters = ffi_kernel(kernels[2], (blocks, n_params), "expand_dims")
+
+    def kernel_backward(x, u, p, h, g):
+        out = adjoint(x, u, p, h, g)
+        cut = 2 * n + steps * n
+        lam = out[cut + 1:].reshape(steps, 4 * n)
+        j = jnp.arange(blocks, dtype=x.dtype)
+        pbar = parameters(x[None], u[None], lam[None], p, h, j).sum(axis=0)
+        return jnp.concatenate([out[:cut], pbar, out[cut:cut + 1]])  # plain_backward's layout
+
     forward = native_call(kernels[0], (steps + 1, 2 * n), plain, vmap_method="expand_dims")
-    backward = native_call(kernels[1], (2 * n + steps * n + n_params + 1,), plain_backward,
-                           vmap_method="expand_dims")
+    backward = platform_kernel(kernel_backward, plain_backward, "cuda")
 
     @jax.custom_vjp
     def rollout(x0, u, p, h):
@@ -97,7 +105,8 @@ def held_torque_rollout(dyn, steps: int, batched: bool) -> Callable | None:
 
     def bwd(res, g):
         x, u, p, h = res
-        out = backward(x, u, p, h, g)
+        exact = jnp.result_type(x, g) in (jnp.float32, jnp.float64)
+        out = backward(x, u, p, h, g) if exact else plain_backward(x, u, p, h, g)
         cut = 2 * n + steps * n
         return out[:2 * n], out[2 * n:cut].reshape(steps, n), out[cut:cut + n_params], out[cut + n_params:]
 

@@ -76,7 +76,7 @@ def library(native: NativeBuild | None, label: str) -> str | None:
         return None
 
 
-def _dispatch(native: Callable, fallback: Callable, platform: str = "cpu") -> Callable:
+def platform_kernel(native: Callable, fallback: Callable, platform: str = "cpu") -> Callable:
     """``native`` on ``platform`` (``"cpu"`` or ``"cuda"``) and ``fallback`` elsewhere, with the derivatives of
     ``fallback``. On a machine whose devices are all of that platform the fallback is only traced for a
     derivative."""
@@ -97,6 +97,23 @@ def _dispatch(native: Callable, fallback: Callable, platform: str = "cpu") -> Ca
     return kernel
 
 
+def ffi_kernel(target: str | CudaKernel, shape, vmap_method: str = "broadcast_all") -> Callable:
+    """``f(*arrays, out=None)``: the kernel ``target`` called through ``jax.ffi.ffi_call`` on float32 or float64
+    arrays (cast to their common dtype), with no fallback (:func:`native_call` gives it one)."""
+
+    def native(*args, out=None):
+        dtype = jnp.result_type(*args)
+        args = [jnp.asarray(x, dtype) for x in args]
+        result = jax.ShapeDtypeStruct(tuple(shape), dtype)
+        name, attributes = (target, {}) if isinstance(target, str) else target.call(dtype)
+        if out is None:
+            return jax.ffi.ffi_call(name, result, vmap_method=vmap_method)(*args, **attributes)
+        aliased = jax.ffi.ffi_call(name, result, vmap_method=vmap_method, input_output_aliases={len(args): 0})
+        return aliased(*args, out.astype(dtype), **attributes)
+
+    return native
+
+
 def native_call(target: str | CudaKernel, shape, fallback: Callable, vmap_method: str = "broadcast_all") -> Callable:
     """``f(*arrays, out=None)`` of result shape ``shape``, computed by the registered ``target`` on CPU (or the
     :class:`~jaxskid.runtime._cuda.CudaKernel` ``target`` on a GPU) for
@@ -107,21 +124,13 @@ def native_call(target: str | CudaKernel, shape, fallback: Callable, vmap_method
     ``input_output_aliases``): in a program that donates it, the result takes its memory, and no fresh
     memory is filled; its entries are not read."""
 
-    def native(*args):
-        *args, out = args
-        dtype = jnp.result_type(*args)
-        args = [jnp.asarray(x, dtype) for x in args]
-        result = jax.ShapeDtypeStruct(tuple(shape), dtype)
-        name, attributes = (target, {}) if isinstance(target, str) else target.call(dtype)
-        if out is None:
-            return jax.ffi.ffi_call(name, result, vmap_method=vmap_method)(*args, **attributes)
-        aliased = jax.ffi.ffi_call(name, result, vmap_method=vmap_method, input_output_aliases={len(args): 0})
-        return aliased(*args, out.astype(dtype), **attributes)
+    native = ffi_kernel(target, shape, vmap_method)
 
     def plain(*args):
         return fallback(*args[:-1])
 
-    kernel = _dispatch(native, plain, "cpu" if isinstance(target, str) else "cuda")
+    kernel = platform_kernel(lambda *args: native(*args[:-1], out=args[-1]), plain,
+                             "cpu" if isinstance(target, str) else "cuda")
 
     def call(*args, out=None):
         if jnp.result_type(*args) not in (jnp.float32, jnp.float64):

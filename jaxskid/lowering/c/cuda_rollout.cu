@@ -61,30 +61,53 @@ static void body(const io_t *x0, const io_t *u, const io_t *pin, const io_t *hin
         for (int k = 0; k < N; k++) out[(s + 1) * NX + k] = (io_t)q[k], out[(s + 1) * NX + N + k] = (io_t)qd[k];
     }
 }
-#else
-/* The states x (the forward pass's result), u, p, h and the cotangent g of x -> [xbar_0 (2 N), ubar (STEPS N),
-   pbar (NP), hbar]: from the last step, each step's stages recomputed from its saved state, then its backward
-   pass (rk4_backward), the cotangent of x_s being that pass's plus g's row s. */
+#elif JAXSKID_BACKWARD == 1
+/* The adjoint: the states x (the forward pass's result), u, p, h and the cotangent g of x -> [xbar_0 (2 N),
+   ubar (STEPS N), hbar, lambda (STEPS 4 N)]: from the last step, each step's stages recomputed from its saved
+   state, then its backward pass (rk4_backward), the cotangent of x_s being that pass's plus g's row s. Each
+   stage's lambda is kept for the parameters' part, which needs no recursion (JAXSKID_BACKWARD 2). */
 static void body(const io_t *x, const io_t *u, const io_t *pin, const io_t *hin, const io_t *g, io_t *out)
 {
-    io_t *ub = out + NX, *pout = out + NX + STEPS * N;
+    io_t *ub = out + NX, *lout = out + NX + STEPS * N + 1;
     PARAMETERS(pin, copy);
-    D pb[NP1], q[N], qd[N], tau[N], qs[4 * N], qds[4 * N], as[4 * N], yq[N], yqd[N], zq[N], zqd[N], tb[N];
-    for (int k = 0; k < NP; k++) pb[k] = 0.0;
+    D q[N], qd[N], tau[N], qs[4 * N], qds[4 * N], as[4 * N], yq[N], yqd[N], zq[N], zqd[N], tb[N], lam[4 * N];
     const D h = hin[0];
     D hb = 0.0;
     for (int k = 0; k < N; k++) yq[k] = g[STEPS * NX + k], yqd[k] = g[STEPS * NX + N + k];
     for (long long s = STEPS - 1; s >= 0; s--) {
         for (int k = 0; k < N; k++) q[k] = x[s * NX + k], qd[k] = x[s * NX + N + k], tau[k] = u[s * N + k], tb[k] = 0.0;
         rk4_step(q, qd, tau, p, h, qs, qds, as, N);
-        rk4_backward(qs, qds, as, p, h, yq, yqd, zq, zqd, tb, pb, &hb);
+        rk4_backward(qs, qds, as, p, h, yq, yqd, zq, zqd, tb, (D *)0, &hb, lam);
         for (int k = 0; k < N; k++) {
             ub[s * N + k] = (io_t)tb[k];
             yq[k] = zq[k] + g[s * NX + k], yqd[k] = zqd[k] + g[s * NX + N + k];
         }
+        for (int k = 0; k < 4 * N; k++) lout[s * 4 * N + k] = (io_t)lam[k];
     }
     for (int k = 0; k < N; k++) out[k] = (io_t)yq[k], out[N + k] = (io_t)yqd[k];
-    for (int k = 0; k < NP; k++) pout[k] = (io_t)pb[k];
-    pout[NP] = (io_t)hb;
+    out[NX + STEPS * N] = (io_t)hb;
+}
+#else
+/* The parameters' cotangent from the steps [j STRIDE, (j + 1) STRIDE) of one rollout: x, u and lambda (the
+   adjoint's) of every step, p, h and j -> the sum over those steps and their stages of -(d ID/d p)^T lambda_i
+   at the stage's state (NP). The rollouts' blocks of steps are threads of their own. */
+static void body(const io_t *x, const io_t *u, const io_t *lin, const io_t *pin, const io_t *hin, const io_t *jin,
+                 io_t *out)
+{
+    PARAMETERS(pin, copy);
+    D pb[NP1], q[N], qd[N], tau[N], qs[4 * N], qds[4 * N], as[4 * N], lam[N], o[NV];
+    const D h = hin[0];
+    const long long first = (long long)jin[0] * @STRIDE@, last = first + @STRIDE@ < STEPS ? first + @STRIDE@ : STEPS;
+    for (int k = 0; k < NP; k++) pb[k] = 0.0;
+    for (long long s = first; s < last; s++) {
+        for (int k = 0; k < N; k++) q[k] = x[s * NX + k], qd[k] = x[s * NX + N + k], tau[k] = u[s * N + k];
+        rk4_step(q, qd, tau, p, h, qs, qds, as, N);
+        for (int i = 0; i < 4; i++) {
+            for (int k = 0; k < N; k++) lam[k] = lin[(s * 4 + i) * N + k];
+            VJP(qs + i * N, qds + i * N, as + i * N, lam, p, o);
+            for (int k = 0; k < NP; k++) pb[k] -= o[2 * N + k];
+        }
+    }
+    for (int k = 0; k < NP; k++) out[k] = (io_t)pb[k];
 }
 #endif

@@ -70,7 +70,7 @@ static void rk4_chunk(void *ctx, int64_t c, int slot)
     for (int64_t b = from; b < to; b += W) {
         load_lanes(j, 7, rk4_size, w, b, to);
         for (int k = 2 * N; k < NR; k++) out[k] = TLIFT(0.0);
-        rk4_backward(q, qd, a, p, h[0], gq, gqd, out, out + N, out + 2 * N, out + 3 * N, out + 3 * N + NP);
+        rk4_backward(q, qd, a, p, h[0], gq, gqd, out, out + N, out + 2 * N, out + 3 * N, out + 3 * N + NP, (T *)0);
         store_lanes(j, out, NR, b, to);
     }
 }

@@ -14,9 +14,10 @@ static T dot_n(const T *x, const T *y)
 }
 
 /* One state's step: q, qd, a the four stages' (4 N each), (gq, gqd) the cotangent of the step's result; yq, yqd
-   the cotangent of its start (written), taubar, pbar and hbar added to tb, pb and *hb. */
+   the cotangent of its start (written), taubar, pbar and hbar added to tb, pb and *hb; with lam, each stage's
+   lambda (the cotangent of its torque) written there (4 N). pb or lam null: not computed. */
 static void rk4_backward(const T *q, const T *qd, const T *a, const T *p, T h, const T *gq, const T *gqd, T *yq,
-                         T *yqd, T *tb, T *pb, T *hb)
+                         T *yqd, T *tb, T *pb, T *hb, T *lam)
 {
     T nq[N], nqd[N], kq[N], kqd[N], o[NO];  /* nq, nqd: the cotangent of the next stage's input */
     for (int k = 0; k < N; k++) yq[k] = gq[k], yqd[k] = gqd[k], nq[k] = nqd[k] = TLIFT(0.0);
@@ -28,6 +29,9 @@ static void rk4_backward(const T *q, const T *qd, const T *a, const T *p, T h, c
         *hb += TLIFT(rk4_b[s]) * (dot_n(gq, qd + s * N) + dot_n(gqd, a + s * N));
         if (s > 0) *hb += TLIFT(rk4_c[s]) * (dot_n(nq, qd + (s - 1) * N) + dot_n(nqd, a + (s - 1) * N));
         for (int k = 0; k < N; k++) yq[k] += nq[k], yqd[k] += nqd[k], tb[k] += o[k];
-        for (int k = 0; k < NP; k++) pb[k] += o[3 * N + k];
+        if (lam)
+            for (int k = 0; k < N; k++) lam[s * N + k] = o[k];
+        if (pb)
+            for (int k = 0; k < NP; k++) pb[k] += o[3 * N + k];
     }
 }
