@@ -32,8 +32,10 @@ def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
             ptx = _cuda.compile_kernel(source, "compute_90").decode()
             assert ".entry jaxskid_kernel" in ptx and ".f64" in ptx
     rng = np.random.default_rng(0)
-    # batch (2, 3): x0 varies along both axes, the torques along the second, the step along the first
+    # batch (2, 3): x0 varies along both axes, the torques along the second, the step along the first; the
+    # angles span many quadrants (the kernels' own sine and cosine)
     x0, u = rng.uniform(-0.5, 0.5, (2, 3, 2 * n)), rng.uniform(-5, 5, (3, STEPS, n))
+    x0[..., :n] *= 40.0
     p, h = np.asarray(dyn.param_vector()), np.array([0.01, 0.02]).reshape(2, 1, 1)
 
     def run(part, inputs, shape):
