@@ -102,7 +102,7 @@ AGREEMENT = {"z1_all": QUANTITIES, "g1": ("mass_matrix", "forward_dynamics", "re
 """The quantities whose kernels ``agreement`` compares with the JAX form computed on the CPU."""
 VARIANTS = {"ptxas -O3": {"JAXSKID_PTXAS_O": "3"}, "256 threads": {"JAXSKID_CUDA_THREADS": "256"},
             "64 threads": {"JAXSKID_CUDA_THREADS": "64"}, "not split": {"JAXSKID_CUDA_LONG": "1000000"},
-            "pieces of 2048": {"JAXSKID_CUDA_CHUNK": "2048"}}
+            "pieces of 2048": {"JAXSKID_CUDA_CHUNK": "2048"}, "fused trig": {"JAXSKID_CUDA_TRIG": "fused"}}
 """The kernel builds ``variants`` measures against the default (:mod:`jaxskid.lowering._cuda`'s settings)."""
 SLOW_NEEDS = 120.0
 """Seconds left that a slow case needs to start."""

@@ -27,9 +27,9 @@ def _kernels(dyn):
     return found
 
 
-def _check(dyn, names, tmp_path, rng, io=("float64", "float32")):
+def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), spread=1.0):
     """Each quantity of ``names``: its kernel compiles to PTX for each dtype of ``io``, and built for the host it
-    agrees at 1e-12 with the JAX form."""
+    agrees at 1e-12 with the JAX form, at states drawn from [-spread, spread]."""
     kernels = _kernels(dyn)
     assert set(names) <= set(kernels)
     p = np.asarray(dyn.param_vector())
@@ -41,8 +41,8 @@ def _check(dyn, names, tmp_path, rng, io=("float64", "float32")):
             assert ".entry jaxskid_kernel" in ptx and ".f64" in ptx
         host = _cuda.host_library(_cuda.kernel_source(sources, name), tmp_path)
         # a batch of (2, 3): q varies along both axes, the other state arguments along the second only
-        states = [rng.uniform(-1, 1, (2, 3, dyn.argument_shape(a)[0]) if k == 0 else (3, dyn.argument_shape(a)[0]))
-                  for k, a in enumerate(args)]
+        states = [spread * rng.uniform(-1, 1, (2, 3, dyn.argument_shape(a)[0]) if k == 0
+                                       else (3, dyn.argument_shape(a)[0])) for k, a in enumerate(args)]
         out = np.full((2, 3, *shape), np.nan)
         _cuda.run_on_host(host, [*states, p], cores, out, out_rank)
         inner = jax.vmap(dyn.raw(name), in_axes=(*[0] * len(args), None))
@@ -82,6 +82,16 @@ def test_long_kernels_in_pieces(monkeypatch, tmp_path):
     source = _cuda.kernel_source(_kernels(dyn)["coriolis_matrix"][0], "coriolis_matrix")
     assert source.count("__attribute__((noinline))") > 3
     _check(dyn, names, tmp_path, np.random.default_rng(5), io=("float64",))
+
+
+def test_kernels_with_their_own_sine_and_cosine(monkeypatch, tmp_path):
+    """JAXSKID_CUDA_TRIG=fused: sine and cosine by multiply-adds (c/cuda_trig.h, as the rollout kernels compute
+    them), at angles over many quadrants."""
+    monkeypatch.setenv("JAXSKID_CUDA_TRIG", "fused")
+    names = ["mass_matrix", "coriolis_matrix"]
+    dyn = jaxskid.lower(load("panda7"), QUANTITIES)
+    assert "jaxskid_trig" in _cuda.kernel_source(_kernels(dyn)["mass_matrix"][0], "mass_matrix")
+    _check(dyn, names, tmp_path, np.random.default_rng(6), io=("float64",), spread=30.0)
 
 
 @pytest.mark.slow

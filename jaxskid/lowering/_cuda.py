@@ -59,7 +59,25 @@ than as one function or in pieces of 2,048; its mass matrix (2,150) ran faster a
 CHUNK = 512
 """Statements per piece of a long kernel (``JAXSKID_CUDA_CHUNK`` sets another)."""
 
+TRIG = "library"
+"""How a quantity kernel computes sine and cosine: ``"library"``, CUDA's ``sin`` and ``cos``, or ``"fused"``,
+multiply-adds without a branch (``c/cuda_trig.h``); ``JAXSKID_CUDA_TRIG`` sets the other. The rollout kernels
+always use ``"fused"``: on an H200 the z1's rollout ran a third faster with it (the library's functions branch
+to a slow reduction for large angles, which kept a thread's calls from interleaving); for the quantities it is
+not yet measured (``benchmarks/gpu.py``'s ``variants`` compares the two)."""
+
 _IO = {"float32": "float", "float64": "double"}
+
+
+def trig_source(kind: str | None = None) -> str:
+    """The definitions of ``Dsin`` and ``Dcos`` in a kernel: ``kind`` (:data:`TRIG`'s choices), by default
+    ``JAXSKID_CUDA_TRIG`` or :data:`TRIG`."""
+    kind = kind or os.environ.get("JAXSKID_CUDA_TRIG") or TRIG
+    if kind == "library":
+        return "#define Dsin(x) sin(x)\n#define Dcos(x) cos(x)"
+    if kind == "fused":
+        return template("cuda_trig.h").rstrip("\n")
+    raise ValueError(f"JAXSKID_CUDA_TRIG: expected 'library' or 'fused', got {kind!r}")
 
 
 def split_sizes() -> tuple[int, int]:
@@ -80,8 +98,8 @@ def kernel_source(native: NativeSource, name: str, io: str = "float64") -> str |
     functions = _chunked("body", kernel, "D", set(kernel.zeros), io="io_t", long=long, chunk_size=chunk, huge=None)
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n",
-                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=native.stem, NAME=name,
-                         FUNCTIONS="".join(f.text() if isinstance(f, Piece) else f for f in functions),
+                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source(), STEM=native.stem,
+                         NAME=name, FUNCTIONS="".join(f.text() if isinstance(f, Piece) else f for f in functions),
                          N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
 
 

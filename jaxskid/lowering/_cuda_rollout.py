@@ -21,7 +21,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, VectorKernel, rollout_layout
-from ._cuda import _IO, split_sizes, threads
+from ._cuda import _IO, split_sizes, threads, trig_source
 from ._ffi import Piece, _chunked
 from ._ffi_rk4 import RK4_STEP
 from ._templates import fill, template
@@ -60,5 +60,5 @@ def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n#define JAXSKID_IO_DOUBLE {int(io == 'float64')}\n"
                     f"#define JAXSKID_BACKWARD {ROLLOUT_PARTS.index(part)}\n",
-                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), STEM=stem, NAME=f"rollout ({part})",
-                         FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
+                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source("fused"), STEM=stem,
+                         NAME=f"rollout ({part})", FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
