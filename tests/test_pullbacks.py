@@ -3,10 +3,13 @@
 ``jax.grad`` of M, C, C qd, Q_grav and tau with respect to the parameters and the states runs the lowered
 pullbacks (``mass_matrix_vjp``, ...); forward mode differentiates the quantity's own program. The two are
 independent routes to the same derivatives, and both are checked against central differences of the
-quantity's values: on the Panda, solo12 with a floating base, the Panda with drives, the Panda with its
-mimic finger, the G1 (29 DOF) and with native kernels off. Every composition of ``jax.grad``, ``jax.jacfwd``,
+quantity's values: on the Panda, solo12 with a floating base, the Panda with drives, a tree with a mimic
+joint on another branch, the G1 (29 DOF) and with native kernels off. Every composition of ``jax.grad``, ``jax.jacfwd``,
 ``jax.vmap`` and ``jax.jit`` that users write must give the same numbers.
 """
+
+import tempfile
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -195,9 +198,12 @@ def _drives():  # armature in M, friction in tau
     return jaxskid.lower(jaxskid.load(PANDA, lock=FINGERS, drives=True), ["inverse_dynamics"]), ["inverse_dynamics"]
 
 
-def _mimic():  # C here: on the Panda of the fast tests too
+def _mimic():  # a mimic joint on another branch of a tree (test_mimic's robot "branch"), with C
+    from test_mimic import CASES, write_urdf
+
     names = ["coriolis_matrix", "inverse_dynamics"]
-    return jaxskid.lower(jaxskid.load(PANDA, mimic=True), names), names
+    path = write_urdf(Path(tempfile.mkdtemp(prefix="jaxskid-mimic-")) / "branch.urdf", CASES["branch"])
+    return jaxskid.lower(jaxskid.load(path, mimic=True), names), names
 
 
 @pytest.mark.slow
