@@ -102,3 +102,6 @@ def test_programs_for_a_gpu_call_the_rollout_kernels(monkeypatch, tmp_path):
     text = exported(lambda x0: jax.grad(loss, argnums=1)(x0, dyn.param_vector()))
     calls = [line for line in text.splitlines() if "custom_call" in line]
     assert len(calls) == 3 and all(TARGET in line for line in calls) and "stablehlo.while" not in text
+    # second order (forward over reverse) differentiates the kernels' fallback, the loop of steps
+    text = exported(lambda x0: jax.hessian(loss, argnums=1)(x0, dyn.param_vector()))
+    assert "stablehlo.while" in text and TARGET in text

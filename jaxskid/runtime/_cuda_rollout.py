@@ -7,8 +7,9 @@ Written as a ``lax.scan`` of steps, a rollout on a GPU launches several kernels 
 as many again in its backward loop: a batch of one rollout is bound by launches, a large one by the states
 written and read between them. The forward and adjoint kernels run all steps of one rollout in one thread.
 
-Elsewhere than on a CUDA GPU, and for complex inputs and derivatives of the gradient, the same rollout runs as
-the scan of :func:`jaxskid.runtime._rk4.held_torque_rk4` steps (what the kernels replace; their fallback).
+Elsewhere than on a CUDA GPU, the rollout runs as the scan of :func:`jaxskid.runtime._rk4.held_torque_rk4` steps
+(the kernels serve only where :meth:`jaxskid.Dynamics.cuda_rollout` has them); for complex inputs and derivatives
+of the gradient, the kernels' fallback is the same RK4 sums in JAX, differentiated stage by stage.
 """
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ import jax.numpy as jnp
 from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, rollout_layout
 from ._cuda import CudaKernel, architecture
 from ._ffi import ffi_kernel, native_call, platform_kernel
-from ._rk4 import held_torque_rk4
+from ._forward import accelerations
+from ._rk4 import _stages, held_torque_rk4
 
 log = logging.getLogger("jaxskid")
 
@@ -65,15 +67,15 @@ def held_torque_rollout(dyn, steps: int, batched: bool) -> Callable | None:
     :meth:`jaxskid.Dynamics.cuda_rollout` has no kernels (not on a CUDA GPU, a floating base, no pullback of
     inverse dynamics lowered). ``batched``: whether it will be mapped with ``jax.vmap`` (the fallback's steps)."""
     kernels = dyn.cuda_rollout(steps)
-    step = None if kernels is None else held_torque_rk4(dyn, batched)
-    if step is None:
+    if kernels is None or held_torque_rk4(dyn, batched) is None:
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
     blocks = -(-steps // ROLLOUT_STRIDE)
+    qdd = accelerations(dyn, batched, "forward")
 
-    def plain(x0, u, p, h):
+    def plain(x0, u, p, h):  # the steps in JAX, differentiable in both modes (the kernels' derivatives)
         def one(x, tau):
-            x1 = jnp.concatenate(step(x[:n], x[n:], tau, p, h[0]))
+            x1 = jnp.concatenate(_stages(qdd, x[:n], x[n:], p, h[0], lambda c, qi, qdi: tau)[0])
             return x1, x1
 
         return jnp.concatenate([x0[None], jax.lax.scan(one, x0, u)[1]])
