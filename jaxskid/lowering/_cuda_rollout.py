@@ -58,7 +58,8 @@ def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int
                      RK4_STEP=RK4_STEP)
     sizes, _, n_out, _ = rollout_layout(part, n, n_params, steps)
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
-    return "".join([f"#define JAXSKID_IO {_IO[io]}\n#define JAXSKID_IO_DOUBLE {int(io == 'float64')}\n"
-                    f"#define JAXSKID_BACKWARD {ROLLOUT_PARTS.index(part)}\n",
-                    fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source("fused"), STEM=stem,
-                         NAME=f"rollout ({part})", FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
+    head = (f"#define JAXSKID_IO {_IO[io]}\n#define JAXSKID_IO_DOUBLE {int(io == 'float64')}\n"
+            f"#define JAXSKID_ROLLOUT_PART {ROLLOUT_PARTS.index(part)}\n")
+    return head + fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source("fused"), STEM=stem,
+                       NAME=f"rollout ({part})", FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out,
+                       THREADS=threads())

@@ -11,9 +11,9 @@ Elsewhere than on a CUDA GPU, the rollout runs as the scan of :func:`jaxskid.run
 (the kernels serve only where :meth:`jaxskid.Dynamics.cuda_rollout` has them); for complex inputs and derivatives
 of the gradient, the kernels' fallback is the same RK4 sums in JAX, differentiated stage by stage.
 """
+
 from __future__ import annotations
 
-import logging
 from collections.abc import Callable
 
 import jax
@@ -23,9 +23,7 @@ from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, rollout_layout
 from ._cuda import CudaKernel, architecture
 from ._ffi import ffi_kernel, native_call, platform_kernel
 from ._forward import accelerations
-from ._rk4 import _stages, held_torque_rk4
-
-log = logging.getLogger("jaxskid")
+from ._rk4 import _available, _stages
 
 PROGRAMS = ("forward_dynamics", "mass_matrix", "inverse_dynamics_vjp")
 """The vector programs a rollout kernel is printed from."""
@@ -67,7 +65,7 @@ def held_torque_rollout(dyn, steps: int, batched: bool) -> Callable | None:
     :meth:`jaxskid.Dynamics.cuda_rollout` has no kernels (not on a CUDA GPU, a floating base, no pullback of
     inverse dynamics lowered). ``batched``: whether it will be mapped with ``jax.vmap`` (the fallback's steps)."""
     kernels = dyn.cuda_rollout(steps)
-    if kernels is None or held_torque_rk4(dyn, batched) is None:
+    if kernels is None or not _available(dyn):
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
     blocks = -(-steps // ROLLOUT_STRIDE)

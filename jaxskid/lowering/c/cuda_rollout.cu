@@ -48,7 +48,7 @@ JAXSKID_FN void rk4_step(D *q, D *qd, const D *tau, const D *p, D h, D *qs, D *q
 #define PARAMETERS(pin, copy) D copy[NP1]; for (int k = 0; k < NP; k++) copy[k] = pin[k]; const D *p = copy
 #endif
 
-#if JAXSKID_BACKWARD == 0
+#if JAXSKID_ROLLOUT_PART == 0
 /* x0 (2 N), u (STEPS N), p, h (1) -> the states x_0 ... x_STEPS ((STEPS + 1) 2 N). */
 static void body(const io_t *x0, const io_t *u, const io_t *pin, const io_t *hin, io_t *out)
 {
@@ -62,11 +62,11 @@ static void body(const io_t *x0, const io_t *u, const io_t *pin, const io_t *hin
         for (int k = 0; k < N; k++) out[(s + 1) * NX + k] = (io_t)q[k], out[(s + 1) * NX + N + k] = (io_t)qd[k];
     }
 }
-#elif JAXSKID_BACKWARD == 1
+#elif JAXSKID_ROLLOUT_PART == 1
 /* The adjoint: the states x (the forward pass's result), u, p, h and the cotangent g of x -> [xbar_0 (2 N),
    ubar (STEPS N), hbar, lambda (STEPS 4 N)]: from the last step, each step's stages recomputed from its saved
    state, then its backward pass (rk4_backward), the cotangent of x_s being that pass's plus g's row s. Each
-   stage's lambda is kept for the parameters' part, which needs no recursion (JAXSKID_BACKWARD 2). */
+   stage's lambda is kept for the parameters' part, which needs no recursion (JAXSKID_ROLLOUT_PART 2). */
 static void body(const io_t *x, const io_t *u, const io_t *pin, const io_t *hin, const io_t *g, io_t *out)
 {
     io_t *ub = out + NX, *lout = out + NX + STEPS * N + 1;
