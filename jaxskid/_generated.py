@@ -116,6 +116,9 @@ class NativeBuild(Protocol):
         ``n`` velocities and ``n_params`` parameters, and its threads per block."""
 
 
+ROLLOUT_PROGRAMS = ("forward_dynamics", "mass_matrix", "inverse_dynamics_vjp")
+"""The quantities whose vector programs a rollout kernel is printed from."""
+
 ROLLOUT_PARTS = ("forward", "adjoint", "parameters")
 """A rollout's CUDA kernels (:mod:`jaxskid.lowering._cuda_rollout`): the rollout, the adjoint recursion of its
 gradient, and the parameters' part of the gradient, which needs no recursion and runs a thread per

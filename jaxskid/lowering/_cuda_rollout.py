@@ -32,7 +32,8 @@ ROLLOUT_PTXAS = "3"
 
 PROGRAMS = {"fd": ("forward_dynamics", ("q", "qd", "tau", "p")), "mass": ("mass_matrix", ("q", "p")),
             "vjp": ("inverse_dynamics_vjp", ("q", "qd", "qdd", "cotangent", "p"))}
-"""The device functions of a rollout kernel: ``{function: (quantity, its arguments in order)}``."""
+"""The device functions of a rollout kernel: ``{function: (quantity, its arguments in order)}``, over the
+quantities of :data:`jaxskid._generated.ROLLOUT_PROGRAMS`."""
 
 
 def programs_usable(vectors: Mapping[str, VectorKernel | None]) -> bool:

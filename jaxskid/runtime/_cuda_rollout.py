@@ -19,15 +19,11 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, rollout_layout
+from .._generated import ROLLOUT_PARTS, ROLLOUT_PROGRAMS, ROLLOUT_STRIDE, rollout_layout
 from ._cuda import CudaKernel, architecture
 from ._ffi import ffi_kernel, native_call, platform_kernel
 from ._forward import accelerations
-from ._rk4 import _available, _stages
-
-PROGRAMS = ("forward_dynamics", "mass_matrix", "inverse_dynamics_vjp")
-"""The vector programs a rollout kernel is printed from."""
-
+from ._rk4 import _stages
 
 class RolloutKernel(CudaKernel):
     """The rollout kernel ``part`` (:data:`jaxskid._generated.ROLLOUT_PARTS`) of ``steps`` steps of a robot of
@@ -47,14 +43,14 @@ class RolloutKernel(CudaKernel):
 
 def rollout_kernels(builds, n: int, n_params: int, steps: int) -> tuple[RolloutKernel, ...] | None:
     """The rollout kernels of :data:`jaxskid._generated.ROLLOUT_PARTS` from a lowering's native libraries
-    ``builds``, or None where they lack a program of :data:`PROGRAMS`."""
+    ``builds``, or None where they lack a program of :data:`jaxskid._generated.ROLLOUT_PROGRAMS`."""
     vectors = {}
     for build in builds:
         vectors.update({k: v for k, v in build.sources.vectors.items() if v is not None})
     owner = next((b for b in builds if "forward_dynamics" in b.sources.vectors), None)
-    if owner is None or any(name not in vectors for name in PROGRAMS):
+    if owner is None or any(name not in vectors for name in ROLLOUT_PROGRAMS):
         return None
-    vectors = {name: vectors[name] for name in PROGRAMS}
+    vectors = {name: vectors[name] for name in ROLLOUT_PROGRAMS}
     return tuple(RolloutKernel(owner, vectors, n, n_params, steps, part) for part in ROLLOUT_PARTS)
 
 
@@ -65,7 +61,7 @@ def held_torque_rollout(dyn, steps: int, batched: bool) -> Callable | None:
     :meth:`jaxskid.Dynamics.cuda_rollout` has no kernels (not on a CUDA GPU, a floating base, no pullback of
     inverse dynamics lowered). ``batched``: whether it will be mapped with ``jax.vmap`` (the fallback's steps)."""
     kernels = dyn.cuda_rollout(steps)
-    if kernels is None or not _available(dyn):
+    if kernels is None:
         return None
     n, n_params = dyn.nv, len(dyn.parameters)
     blocks = -(-steps // ROLLOUT_STRIDE)

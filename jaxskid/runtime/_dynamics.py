@@ -250,17 +250,16 @@ class Dynamics(QuantitySet):
         return self._cuda_kernels[name]
 
     def cuda_rollout(self, steps: int):
-        """The CUDA kernels of a rollout of ``steps`` RK4 steps under held torques and of its backward pass
+        """The CUDA kernels of a rollout of ``steps`` RK4 steps under held torques and of its gradient
         (:mod:`jaxskid.runtime._cuda_rollout`), or None: CUDA kernels off, a floating base, no pullback of
-        inverse dynamics lowered, or the handler unavailable (logged once)."""
-        if not self._cuda or self.floating_base or "inverse_dynamics_vjp" not in self.quantities:
+        inverse dynamics lowered, or no CUDA kernel of forward dynamics (the handler unavailable: logged once)."""
+        if self.floating_base or "inverse_dynamics_vjp" not in self.quantities or \
+                not self._cuda or self.native_target("forward_dynamics") is None:
             return None
         key = f"rollout {steps}"
         if key not in self._cuda_kernels:
             builds = list({id(b): b for b in self._native_build.values()}.values())
-            kernels = rollout_kernels(builds, self.nv, len(self.parameters), steps)
-            usable = kernels is not None and cuda_kernel(kernels[0].build, "forward_dynamics", self.robot_name)
-            self._cuda_kernels[key] = kernels if usable else None
+            self._cuda_kernels[key] = rollout_kernels(builds, self.nv, len(self.parameters), steps)
         return self._cuda_kernels[key]
 
     def report(self) -> dict[str, str]:
