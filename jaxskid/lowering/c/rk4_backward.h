@@ -16,8 +16,9 @@ static T dot_n(const T *x, const T *y)
 /* One state's step: q, qd, a the four stages' (4 N each), (gq, gqd) the cotangent of the step's result; yq, yqd
    the cotangent of its start (written), taubar, pbar and hbar added to tb, pb and *hb; with lam, each stage's
    lambda (the cotangent of its torque) written there (4 N). pb or lam null: not computed. */
-static void rk4_backward(const T *q, const T *qd, const T *a, const T *p, T h, const T *gq, const T *gqd, T *yq,
-                         T *yqd, T *tb, T *pb, T *hb, T *lam)
+static void rk4_backward(const T *q, const T *qd, const T *a, const T *p, T h, const T *gq, const T *gqd,
+                         T *__restrict__ yq, T *__restrict__ yqd, T *__restrict__ tb, T *__restrict__ pb,
+                         T *__restrict__ hb, T *__restrict__ lam)
 {
     T nq[N], nqd[N], kq[N], kqd[N], o[NO];  /* nq, nqd: the cotangent of the next stage's input */
     for (int k = 0; k < N; k++) yq[k] = gq[k], yqd[k] = gqd[k], nq[k] = nqd[k] = TLIFT(0.0);
