@@ -56,12 +56,17 @@ def batch_shape(where: str, states: Sequence[tuple[str, tuple, tuple]], extras: 
     return batch
 
 
-def vmapped(fn: Callable, batch: tuple, inputs: Sequence[tuple[jax.Array | None, int]]) -> jax.Array:
+def vmapped(fn: Callable, batch: tuple, inputs: Sequence[tuple[jax.Array | None, int]],
+            pad: Callable[[int], int] | None = None) -> jax.Array:
     """``fn`` of one state, mapped over ``batch``: ``(..., *out)``.
 
     ``inputs`` are ``(array, number of trailing axes)``; an array with batch axes is broadcast to ``batch``
-    and flattened (mapped axis 0), one without (or ``None``) is passed whole to every call.
+    and flattened (mapped axis 0), one without (or ``None``) is passed whole to every call. ``pad(size)``, if
+    given, is the number of states to compute the flattened batch in: the mapped inputs are padded with
+    copies of their last state and the result sliced back.
     """
+    size = int(np.prod(batch))
+    padded = pad(size) if pad is not None else size
     args, axes = [], []
     for x, core in inputs:
         if x is None or x.ndim == core:
@@ -69,7 +74,10 @@ def vmapped(fn: Callable, batch: tuple, inputs: Sequence[tuple[jax.Array | None,
             axes.append(None)
             continue
         tail = x.shape[x.ndim - core:]
-        args.append(jnp.broadcast_to(x, (*batch, *tail)).reshape((-1, *tail)))
+        flat = jnp.broadcast_to(x, (*batch, *tail)).reshape((-1, *tail))
+        if padded > size:
+            flat = jnp.pad(flat, ((0, padded - size), *((0, 0),) * len(tail)), mode="edge")
+        args.append(flat)
         axes.append(0)
     out = jax.vmap(fn, in_axes=tuple(axes))(*args)
-    return out.reshape((*batch, *out.shape[1:]))
+    return out[:size].reshape((*batch, *out.shape[1:]))

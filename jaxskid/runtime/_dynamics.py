@@ -27,6 +27,7 @@ from ._ffi import enabled as native_enabled, library, log, native_quantity, targ
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._forward import accelerations, forward_dynamics
+from ._gathered import gathered, padded_batch
 from ._checks import check_finite, check_inputs
 from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
@@ -330,6 +331,10 @@ class Dynamics(QuantitySet):
             plain = plain_out = native_quantity(native, shape, plain)
             if name in self._rules:  # differentiated without tracing the JAX form's value
                 raw, plain = self._rules[name](raw_out), self._rules[name](plain_out)
+        # a matrix of the JAX form on CPU: the gathered form, for a batch (jaxskid.runtime._gathered)
+        gather = native is None and len(shape) >= 2 and jax.default_backend() == "cpu"
+        if gather:
+            raw = self._gathered(name)
         cores = {a: self.argument_shape(a) for a in args}
         n_params = (len(self.parameters),)
 
@@ -355,7 +360,8 @@ class Dynamics(QuantitySet):
                 return jax.vmap(raw, in_axes=(*([0] * len(pairs)), None))(*pairs, p)[0]
             if not batch:
                 return plain(*arrays, p)
-            return vmapped(raw, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)])
+            pad = functools.partial(padded_batch, dtype=dtype) if gather else None
+            return vmapped(raw, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)], pad)
 
         if name != "forward_kinematics":
             return call
@@ -366,6 +372,15 @@ class Dynamics(QuantitySet):
             return {f: poses[..., k, :, :] for k, f in enumerate(frames)}
 
         return call_fk
+
+    def _gathered(self, name: str) -> Callable:
+        """The gathered form of the matrix ``name`` (:mod:`jaxskid.runtime._gathered`), with the quantity's
+        derivative rules."""
+        quantity = self.module.quantities[name]
+        fn = gathered(quantity.program, quantity.shape, quantity.function)
+        if name in self._rules:
+            fn = self._rules[name](fn)
+        return _traced_once(fn, name)
 
     def _make(self, name: str) -> Callable:
         args, shape = self.signature(name)

@@ -1,0 +1,108 @@
+"""The gathered form of a matrix-valued quantity: how the JAX form computes a batch of large results on CPU.
+
+The generated function assembles its result with select chains over the result's axes (see
+:mod:`jaxskid.codegen._jax`). XLA on CPU compiles those into one loop over the entries in which every vector
+of entries runs the selects of every row, so their cost grows with the square of the number of entries and
+outgrows the arithmetic from about a hundred entries (the G1 with hands' mass matrix, 577 nonzero entries:
+about 90 % of its time). The gathered form computes the same program and assembles the result in three
+steps whose cost is linear in the entries:
+
+1. every distinct nonzero entry (a symmetric matrix's pair is one) is an output of a variadic
+   ``lax.reduce`` (by ``max`` over two equal lanes, exact): XLA compiles a reduce with many outputs into one
+   loop over the batch that runs the program once per state and stores each output in its own array.
+   At most :data:`CHUNK` outputs per reduce (XLA refuses a kernel of more than 1,000 outputs, and LLVM's time
+   grows faster than a kernel's length);
+2. the outputs stacked into a ``(batch, distinct + 1)`` array, its last column zero;
+3. one gather with a constant index, which also places the zeros and the repeated entries.
+
+Each output of the reduce is an array of the batch. When the batch's rows span an even number of cache
+lines, those arrays lie at strides that map them to a few cache sets and the stores evict each other (a
+batch of 4,096 float64 states ran the G1 with hands' mass matrix 4x slower than one of 4,000), so
+:func:`padded_batch` pads a batch to an odd number of lines.
+
+``python benchmarks/output_forms.py --forms broadcast-nested,gathered`` compares the two forms.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+CHUNK = 300
+"""Outputs of one reduce, at most (module docstring, step 1). 300 measured the shortest compile of the G1's
+Coriolis matrix and regressor (29 DOF; chunks of 150 and 700 compiled several times longer)."""
+
+LANES = 2
+"""The reduced axis: two copies of every value."""
+
+
+def _maximum(x: tuple, y: tuple) -> tuple:
+    return tuple(jax.lax.max(a, b) for a, b in zip(x, y))
+
+
+def _distinct(entries: dict) -> tuple[list, dict]:
+    """``(values, where)``: the distinct values of ``entries`` (``{flat index: value}``; one object
+    stored under several indices counts once) and, for each flat index of ``entries``, the position of its
+    value."""
+    values, where, seen = [], {}, {}
+    for k in sorted(entries):
+        v = entries[k]
+        if id(v) not in seen:
+            seen[id(v)] = len(values)
+            values.append(v)
+        where[k] = seen[id(v)]
+    return values, where
+
+
+def _assembled(program: Callable, shape: tuple[int, ...], args) -> jax.Array:
+    """The result of ``program`` on one state, by the gathered form (module docstring)."""
+    dtype = jnp.result_type(*args)
+    entries = program(*args, lambda x: jnp.broadcast_to(x, (LANES,)), entries=True)
+    values, where = _distinct(entries)
+    lanes = [jnp.broadcast_to(jnp.asarray(v, dtype), (LANES,)) for v in values]
+    outputs = []
+    for start in range(0, len(lanes), CHUNK):
+        part = tuple(lanes[start:start + CHUNK])
+        low = (jnp.asarray(-jnp.inf, dtype),) * len(part)
+        outputs += jax.lax.reduce(part, low, _maximum, (0,))
+    index = np.full(math.prod(shape), len(values), dtype=np.int32)
+    for k, position in where.items():
+        index[k] = position
+    table = jnp.stack([*outputs, jnp.zeros((), dtype)])
+    return jnp.take(table, index, mode="clip").reshape(shape)
+
+
+def gathered(program: Callable, shape: tuple[int, ...], broadcast: Callable) -> Callable:
+    """``f(*state, p)`` of one state, to map with ``jax.vmap``: ``program`` (a generated quantity's program,
+    :class:`jaxskid._generated.GeneratedQuantity`) by the gathered form, differentiated in forward mode
+    through the program on unbroadcast values, as the generated function is. ``broadcast`` (the generated
+    function) serves complex inputs: ``max`` has no order on them."""
+
+    def plain(*args):
+        return program(*args, lambda x: x)
+
+    @jax.custom_jvp
+    def f(*args):
+        if jnp.issubdtype(jnp.result_type(*args), jnp.complexfloating):
+            return broadcast(*args)
+        return _assembled(program, shape, args)
+
+    @f.defjvp
+    def _derivative(primals, tangents):
+        return f(*primals), jax.jvp(plain, primals, tangents)[1]
+
+    return f
+
+
+def padded_batch(size: int, dtype) -> int:
+    """The batch to compute ``size`` states in: ``size``, or a little more so that a row of the batch spans an
+    odd number of 64-byte cache lines (module docstring)."""
+    item = jnp.dtype(dtype).itemsize
+    lines = -(-size * item // 64)
+    if size < 64 or lines % 2:
+        return size
+    return (lines + 1) * 64 // item

@@ -1,0 +1,175 @@
+"""The gathered form of the matrix-valued quantities (jaxskid.runtime._gathered): the JAX form's batches on CPU.
+
+With native kernels off, a batch of M, C, the regressor or Ṁ is computed by the gathered form. Checked here
+against the generated function it replaces (the select-chain form, mapped with ``jax.vmap``) and against
+Pinocchio's algorithms on its own URDF parser's models (``crba``, ``computeCoriolisMatrix``,
+``computeJointTorqueRegressor``, and ``C + C^T`` for Ṁ), on the Panda, solo12 and (slow) the G1; gradients with
+respect to the parameters and the state against central differences; float32, complex inputs, several
+reduces (small chunks) and the padded batch.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pinocchio as pin
+import pytest
+from helpers import ERD, FINGERS, PANDA, pinocchio_urdf_model
+
+import jaxskid
+from jaxskid.runtime import _gathered
+
+MATRICES = ["mass_matrix", "coriolis_matrix", "regressor", "mass_matrix_dot"]
+SOLO = ERD / "solo_description/robots/solo12.urdf"
+G1 = ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf"
+
+
+def _lowered(path, lock=None):
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("JAXSKID_NATIVE", "0")
+        robot = jaxskid.read_urdf(path, lock=lock)
+        dyn = jaxskid.lower(robot, quantities=MATRICES)
+    for name in MATRICES:
+        assert dyn.native_target(name) is None
+    return dyn, pinocchio_urdf_model(path, lock)
+
+
+@pytest.fixture(scope="module")
+def panda():
+    return _lowered(PANDA, FINGERS)
+
+
+@pytest.fixture(scope="module")
+def solo():
+    return _lowered(SOLO)
+
+
+def _states(n, batch, seed=0):
+    rng = np.random.default_rng(seed)
+    return [jnp.asarray(rng.uniform(-1.5, 1.5, (*batch, n))) for _ in range(3)]
+
+
+def _select_chains(dyn, name, states):
+    """The generated function (the form the gathered one replaces), mapped over a flat batch."""
+    args = states[: len(dyn.signature(name)[0])]
+    return jax.vmap(dyn.generated(name), in_axes=(*[0] * len(args), None))(*args, dyn.param_vector())
+
+
+def _pinocchio(model, name, q, qd, qdd):
+    data = model.createData()
+    if name == "mass_matrix":
+        m = pin.crba(model, data, q)
+        return np.triu(m) + np.triu(m, 1).T
+    if name == "regressor":
+        return pin.computeJointTorqueRegressor(model, data, q, qd, qdd)
+    c = pin.computeCoriolisMatrix(model, data, q, qd)
+    return c if name == "coriolis_matrix" else c + c.T  # dM/dt = C + C^T
+
+
+def _against_references(dyn, model, batch=(3, 5)):
+    q, qd, qdd = _states(dyn.n_dof, batch, seed=1)
+    flat = [x.reshape(-1, dyn.n_dof) for x in (q, qd, qdd)]
+    for name in MATRICES:
+        got = getattr(dyn, name)(*(q, qd, qdd)[: len(dyn.signature(name)[0])])
+        assert got.shape == (*batch, *dyn.signature(name)[1])
+        got = got.reshape(-1, *got.shape[len(batch):])
+        chains = _select_chains(dyn, name, flat)
+        np.testing.assert_allclose(got, chains, rtol=1e-12, atol=1e-12 * float(jnp.abs(chains).max()))
+        for k in range(len(got)):
+            ref = _pinocchio(model, name, *(np.asarray(x[k]) for x in flat))
+            np.testing.assert_allclose(got[k], ref, rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
+
+
+def test_panda_against_pinocchio_and_the_select_chains(panda):
+    _against_references(*panda)
+
+
+def test_solo12_against_pinocchio_and_the_select_chains(solo):
+    _against_references(*solo)
+
+
+@pytest.mark.slow
+def test_g1_against_pinocchio_and_the_select_chains():
+    dyn, model = _lowered(G1)
+    assert dyn.n_dof == 29
+    _against_references(dyn, model, batch=(4,))
+
+
+@pytest.mark.parametrize("name", MATRICES)
+def test_gradients_against_central_differences(panda, name):
+    """jax.grad of a weighted sum of the batch, with respect to the parameters and to q."""
+    dyn, _ = panda
+    states = _states(dyn.n_dof, (6,), seed=2)
+    args = states[: len(dyn.signature(name)[0])]
+    weights = jnp.asarray(np.random.default_rng(3).normal(size=(6, *dyn.signature(name)[1])))
+    p = dyn.param_vector()
+
+    def loss(q, p):
+        return jnp.sum(weights * getattr(dyn, name)(q, *args[1:], params=p))
+
+    gq, gp = jax.grad(loss, argnums=(0, 1))(args[0], p)
+    rng = np.random.default_rng(4)
+    for x, g, arg in ((args[0], gq, 0), (p, gp, 1)):
+        direction = jnp.asarray(rng.normal(size=x.shape))
+        h = 1e-6 * float(jnp.abs(x).max())
+        shifted = [(args[0], p), (args[0], p)]
+        shifted[0] = tuple(v + h * direction if i == arg else v for i, v in enumerate(shifted[0]))
+        shifted[1] = tuple(v - h * direction if i == arg else v for i, v in enumerate(shifted[1]))
+        central = (loss(*shifted[0]) - loss(*shifted[1])) / (2 * h)
+        exact = jnp.sum(g * direction)
+        if name == "regressor" and arg == 1:  # Y does not depend on the parameters
+            assert float(jnp.abs(gp).max()) == 0.0
+            continue
+        assert abs(float(exact - central)) <= 1e-7 * max(1.0, abs(float(central)))
+
+
+def test_float32_and_complex_inputs(panda):
+    dyn, _ = panda
+    q, qd, _ = _states(dyn.n_dof, (5,), seed=5)
+    ref = dyn.coriolis_matrix(q, qd)
+    single = dyn.coriolis_matrix(q.astype(jnp.float32), qd.astype(jnp.float32))
+    assert single.dtype == jnp.float32
+    np.testing.assert_allclose(single, ref, rtol=1e-4, atol=1e-5 * float(jnp.abs(ref).max()))
+    # complex inputs (max has no order on complex numbers: the select chains serve them)
+    quantity = dyn.module.quantities["mass_matrix"]
+    form = jax.vmap(_gathered.gathered(quantity.program, quantity.shape, quantity.function), in_axes=(0, None))
+    p = dyn.param_vector()
+    m = form(q.astype(jnp.complex128), p.astype(jnp.complex128))
+    assert m.dtype == jnp.complex128
+    np.testing.assert_allclose(m.real, dyn.mass_matrix(q), rtol=1e-14, atol=1e-14)
+
+
+def test_several_reduces(monkeypatch):
+    """Outputs split over reduces of a few entries each (CHUNK, for the largest results) give the same result (to
+    rounding: XLA contracts multiply-adds differently in other kernels)."""
+    dyn, _ = _lowered(PANDA, FINGERS)
+    q, qd, qdd = _states(dyn.n_dof, (4,), seed=7)
+    whole = dyn.regressor(q, qd, qdd)
+    monkeypatch.setattr(_gathered, "CHUNK", 7)
+    chunked, _ = _lowered(PANDA, FINGERS)  # a new Dynamics traces its functions again
+    np.testing.assert_allclose(chunked.regressor(q, qd, qdd), whole, rtol=1e-13, atol=1e-13 * float(jnp.abs(whole).max()))
+
+
+def test_padded_batch():
+    """A row of the padded batch spans an odd number of cache lines; small batches and odd ones stay."""
+    assert _gathered.padded_batch(4096, jnp.float64) == 4104
+    assert _gathered.padded_batch(4096, jnp.float32) == 4112
+    assert _gathered.padded_batch(4000, jnp.float64) == 4008  # 500 lines -> 501
+    assert _gathered.padded_batch(4008, jnp.float64) == 4008
+    assert _gathered.padded_batch(40, jnp.float64) == 40
+    for size in (64, 100, 1000, 4096, 65536):
+        for dtype in (jnp.float32, jnp.float64):
+            padded = _gathered.padded_batch(size, dtype)
+            lines = -(-padded * jnp.dtype(dtype).itemsize // 64)
+            assert padded >= size and lines % 2 == 1
+
+
+def test_a_padded_batch_gives_each_state_its_own_result(panda):
+    """A batch of 64 states is computed as 72 (the inputs padded with the last state) and sliced back."""
+    dyn, _ = panda
+    assert _gathered.padded_batch(64, jnp.float64) == 72
+    q = _states(dyn.n_dof, (64,), seed=8)[0]
+    got = dyn.mass_matrix(q)
+    assert got.shape == (64, dyn.n_dof, dyn.n_dof)
+    np.testing.assert_allclose(got, _select_chains(dyn, "mass_matrix", [q]), rtol=1e-12, atol=1e-13)
