@@ -15,9 +15,10 @@ out. Forms:
 - ``nested-where``: one chain per axis on ``lax.broadcasted_iota``;
 - ``broadcast-nested``: the same, with the inputs broadcast to the output's shape first (what jaxskid
   generates);
-- ``reduce``: every distinct entry an output of one variadic ``lax.reduce`` (by ``max``, exact) over two
-  lanes of inputs broadcast to shape ``(2,)``, which XLA compiles into one multi-output kernel, then stacked
-  into the result.
+- ``gathered``: every distinct entry an output of variadic ``lax.reduce``s (by ``max``, exact) over two lanes
+  of inputs broadcast to shape ``(2,)``, which XLA compiles into one multi-output kernel each, then stacked and
+  placed by one gather (what jaxskid runs for a batch of a matrix in the JAX form on CPU,
+  :mod:`jaxskid.runtime._gathered`, its batch padded as there).
 
 Trig ``xla`` is ``jnp.sin``/``jnp.cos``; ``fused`` is the multiply-add version of
 :mod:`jaxskid._fused` (what jaxskid's programs use on CPU; on other platforms they call XLA's), forced
@@ -44,6 +45,7 @@ import pinocchio as pin  # noqa: E402
 
 import jaxskid  # noqa: E402
 from jaxskid.runtime._dynamics import compiler_options  # noqa: E402
+from jaxskid.runtime._gathered import gathered, padded_batch  # noqa: E402
 from jaxskid._fused import SOURCE as HELPERS  # noqa: E402
 from jaxskid.codegen import Layout  # noqa: E402
 from jaxskid.codegen._jax import JaxPrinter, function_source, jax_names  # noqa: E402
@@ -56,7 +58,7 @@ LOCK = {"panda_finger_joint1": 0.0, "panda_finger_joint2": 0.0}
 URDFS = {"ur5": ERD / "ur_description/urdf/ur5_robot.urdf", "solo12": ERD / "solo_description/robots/solo12.urdf",
          "g1": ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf",
          "g1_hands": ERD / "g1_description/urdf/g1_29dof_with_hand_rev_1_0.urdf"}
-FORMS = ("stack", "flat-where", "nested-where", "broadcast-nested", "reduce")
+FORMS = ("stack", "flat-where", "nested-where", "broadcast-nested", "gathered")
 
 
 def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tuple[str, object, bool]]:
@@ -83,16 +85,9 @@ def variants(eqs, name: str, which=FORMS, trig=("fused", "xla")) -> dict[str, tu
             if names[e] != e:
                 stack.append(f"    {names[e]} = {e}")
     distinct = [v for v in names.values() if v != "_z"]
-    reduce = list(stack) + [  # one kernel computes them all: a reduce's outputs share its loop
-        f"    _r = jax.lax.reduce(tuple(jnp.broadcast_to(v, (2,)) for v in ({', '.join(distinct)},)), "
-        f"(jnp.asarray(-jnp.inf, {dtype}),) * {len(distinct)}, "
-        "lambda x, y: tuple(jax.lax.max(a, b) for a, b in zip(x, y)), (0,))",
-        f"    _m = dict(zip({distinct!r}, _r), _z=_z)",
-        "    return jnp.stack([" + ", ".join(f"_m[{names[e]!r}]" for e in outs) + f"]).reshape({shape!r})"]
     stack.append("    return jnp.stack([" + ", ".join(names[e] for e in outs) + f"]).reshape({shape!r})")
     forms = {"stack": (head + "\n".join(stack) + "\n", False), "flat-where": (head + "\n".join(flat) + "\n", False),
-             "nested-where": (body, False), "broadcast-nested": (body, True),
-             "reduce": (head + "\n".join(reduce) + "\n", (2,))}
+             "nested-where": (body, False), "broadcast-nested": (body, True), "gathered": (body, "gathered")}
     out = {}
     for form, (src, spread) in forms.items():
         if form not in which:
@@ -125,11 +120,27 @@ def _compile(src: str, spread: bool, division: bool, label: str, quantity: str, 
     if division:
         ns["_recip"] = lambda x: 1.0 / x
     exec(src, ns)  # noqa: S102
-    spread = shape if spread is True else spread  # True: the output's shape; a shape: that one
-    body, how = ns["_" + quantity], ns["_spread"](spread) if spread else ns["_same"]
-    fn = jax.vmap(lambda *a, body=body, how=how: body(*a, how), in_axes=(*([0] * nargs), None))
+    if spread == "gathered":
+        fn = _gathered_batch(gathered(ns["_" + quantity], tuple(shape), None), nargs)
+    else:
+        spread = shape if spread is True else spread  # True: the output's shape; a shape: that one
+        body, how = ns["_" + quantity], ns["_spread"](spread) if spread else ns["_same"]
+        fn = jax.vmap(lambda *a, body=body, how=how: body(*a, how), in_axes=(*([0] * nargs), None))
     into = jax.jit(lambda *a: fn(*a[:-1]), donate_argnums=(nargs + 1,), compiler_options=compiler_options())
     return jax.jit(fn, compiler_options=compiler_options()), into
+
+
+def _gathered_batch(one, nargs: int):
+    """``one`` mapped over a batch padded as :class:`jaxskid.Dynamics` pads it (:func:`padded_batch`)."""
+    mapped = jax.vmap(one, in_axes=(*([0] * nargs), None))
+
+    def fn(*args):
+        size = args[0].shape[0]
+        extra = padded_batch(size, args[0].dtype) - size
+        states = [jnp.pad(x, ((0, extra), (0, 0)), mode="edge") for x in args[:-1]]
+        return mapped(*states, args[-1])[:size]
+
+    return fn
 
 
 def _timed(fns: dict, states, p, repeats: int, batch: int) -> dict:

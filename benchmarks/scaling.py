@@ -23,7 +23,8 @@ Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. F
 Quantities Pinocchio lacks (``mass_matrix_ddot``, ``coriolis_matrix_dot``, ``coriolis_matrix_ddot``, if
 asked for) are reported against jaxskid's own mass matrix at the same size. ``JAXSKID_NATIVE=0`` in the
 environment times the pure-JAX form of every quantity (the form used off CPU); ``--float32`` adds the time
-per state on float32 states. The plot is time per state against DOF on log-log axes, one line per quantity
+per state on float32 states; ``JAXSKID_MALLOC=keep`` makes the allocator keep freed memory, so that large
+results do not fault in fresh pages at every call (the footer says when it was set). The plot is time per state against DOF on log-log axes, one line per quantity
 for jaxskid (solid) and Pinocchio (dashed).
 """
 
@@ -147,6 +148,11 @@ def _reused_time(fn, args, repeats: int) -> float:
     return _median(call, repeats)
 
 
+def _malloc() -> str:
+    """How glibc allocates in this run: ``JAXSKID_MALLOC=keep`` keeps freed memory (:mod:`jaxskid._xla_flags`)."""
+    return ", JAXSKID_MALLOC=keep" if os.environ.get("JAXSKID_MALLOC") == "keep" else ""
+
+
 def _row_line(row: dict) -> str:
     theirs, reused = row["pinocchio"], row["reused"]
     if theirs is not None:
@@ -240,7 +246,7 @@ def main() -> None:
     if any(q not in STATES for q in quantities):
         parser.error(f"--quantities: choose from {', '.join(STATES)}")
     print(f"jax {jax.__version__} on {jax.default_backend()}, Pinocchio {pin.__version__}, float64, batch {args.batch}, "
-          f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}, sine and cosine {args.trig}")
+          f"JAXSKID_NATIVE={os.environ.get('JAXSKID_NATIVE', '1')}, sine and cosine {args.trig}{_malloc()}")
     out = doc_tables.Lines()
     out("| robot | DOF | quantity | cold derive+lower+compile | jaxskid per state | with out= (ratio) "
         "| Pinocchio per call | ratio |" + (" float32 per state (float64 / float32) |" if args.float32 else ""))
@@ -253,7 +259,7 @@ def main() -> None:
     doc_tables.write(args.markdown, out, f"Batch {args.batch}, float64{single}, every inertial parameter symbolic, medians "
                      f"of {args.repeats}; Pinocchio one call from Python in the same run; cold: derive, lower, "
                      f"compile and first call with every cache empty; JAXSKID_NATIVE={native}, sine and cosine "
-                     f"{args.trig}.")
+                     f"{args.trig}{_malloc()}.")
     if args.plot:
         plot(rows, args.plot)
         print(f"plot: {args.plot}")

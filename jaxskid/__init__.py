@@ -14,9 +14,10 @@ from ._errors import (
     PhysicalConsistencyWarning, RequestError, ShapeError,
 )
 from ._version import __version__
-from ._xla_flags import prefer_classic_emitters
+from ._xla_flags import keep_freed_memory, prefer_classic_emitters
 
 prefer_classic_emitters()
+keep_freed_memory()
 
 if TYPE_CHECKING:  # the same names for type checkers and editors (tests/test_layout.py checks they agree)
     from .model._lie import pose, pose_xyzrpy, rot_axis_angle, rot_quaternion, rot_rpy, screw, spatial_inertia

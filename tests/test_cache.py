@@ -205,3 +205,26 @@ def test_synchronous_cpu_dispatch_when_asked_for():
     out = subprocess.run([sys.executable, "-c", next(iter(scripts))], capture_output=True, text=True,
                          env={k: v for k, v in os.environ.items() if k != "JAXSKID_SYNC_DISPATCH"}, timeout=300)
     assert out.stdout.split() == ["True"], out.stderr[-1000:]
+
+
+def test_freed_memory_kept_when_asked_for():
+    """With JAXSKID_MALLOC=keep, importing jaxskid makes glibc serve a large block from its heap (no mmap of its
+    own: glibc's count of mmapped blocks stays 0 while a 64 MB array lives) and a JAX computation runs; without
+    it, glibc's default stays (the array is one mmapped block)."""
+    import os
+
+    script = (
+        "import ctypes, numpy as np, jaxskid, jax.numpy as jnp\n"
+        "class Info(ctypes.Structure):\n"
+        "    _fields_ = [(n, ctypes.c_size_t) for n in ('arena ordblks smblks hblks hblkhd usmblks fsmblks '\n"
+        "                                                'uordblks fordblks keepcost').split()]\n"
+        "info = ctypes.CDLL('libc.so.6').mallinfo2\n"
+        "info.restype = Info\n"
+        "before = info().hblks\n"
+        "big = np.ones(8 << 20)\n"
+        "print(info().hblks - before, float(jnp.sum(jnp.asarray(big) * 2.0)))\n"
+    )
+    for value, blocks in (("keep", "0"), ("", "1")):
+        env = {**os.environ, "JAXSKID_MALLOC": value}
+        out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+        assert out.stdout.split() == [blocks, str(float(2 * (8 << 20)))], (value, out.stderr[-1000:])
