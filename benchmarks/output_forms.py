@@ -46,6 +46,7 @@ import pinocchio as pin  # noqa: E402
 import jaxskid  # noqa: E402
 from jaxskid.runtime._dynamics import compiler_options  # noqa: E402
 from jaxskid.runtime._gathered import gathered, padded_batch  # noqa: E402
+from jaxskid._generated import GeneratedQuantity  # noqa: E402
 from jaxskid._fused import SOURCE as HELPERS  # noqa: E402
 from jaxskid.codegen import Layout  # noqa: E402
 from jaxskid.codegen._jax import JaxPrinter, function_source, jax_names  # noqa: E402
@@ -121,7 +122,8 @@ def _compile(src: str, spread: bool, division: bool, label: str, quantity: str, 
         ns["_recip"] = lambda x: 1.0 / x
     exec(src, ns)  # noqa: S102
     if spread == "gathered":
-        fn = _gathered_batch(gathered(ns["_" + quantity], tuple(shape), None), nargs)
+        generated = GeneratedQuantity(quantity, (), tuple(shape), "", "", None, ns["_" + quantity])
+        fn = _gathered_batch(gathered(generated), nargs)
     else:
         spread = shape if spread is True else spread  # True: the output's shape; a shape: that one
         body, how = ns["_" + quantity], ns["_spread"](spread) if spread else ns["_same"]

@@ -99,7 +99,7 @@ def keep_freed_memory() -> bool:
     glibc gives a block of 32 MB or more its own ``mmap`` and returns it to the system when it is freed, so a
     program with such results or temporaries (XLA's buffers of a batch of 4,096 states: the G1 with hands'
     mass matrices are 60 MB) touches fresh pages on every call, and the page faults cost more than the
-    arithmetic: a 60 MB elementwise kernel ran 5-7x faster with this. The price: the process keeps its peak
+    arithmetic: a 60 MB elementwise kernel ran 6-9x faster with this. The price: the process keeps its peak
     memory, and its threads share one arena. Off by default: a library does not change how the process
     allocates unless asked. Called when jaxskid is imported, before JAX's threads allocate (arenas already
     made keep their own); returns whether the settings took.

@@ -3,9 +3,9 @@
 With native kernels off, a batch of M, C, the regressor or Ṁ is computed by the gathered form. Checked here
 against the generated function it replaces (the select-chain form, mapped with ``jax.vmap``) and against
 Pinocchio's algorithms on its own URDF parser's models (``crba``, ``computeCoriolisMatrix``,
-``computeJointTorqueRegressor``, and ``C + C^T`` for Ṁ), on the Panda, solo12 and (slow) the G1; gradients with
-respect to the parameters and the state against central differences (the 3-DOF arm of robots/); float32, complex inputs, several
-reduces (small chunks) and the padded batch.
+``computeJointTorqueRegressor``, and ``C + C^T`` for Ṁ), on the Panda and solo12, and M and the regressor on
+(slow) the G1; gradients with respect to the parameters and the state against central differences (the 3-DOF
+arm of robots/); float32, complex inputs, several reduces (small chunks) and the padded batch.
 """
 
 from __future__ import annotations
@@ -140,8 +140,7 @@ def test_float32_and_complex_inputs(panda):
     assert single.dtype == jnp.float32
     np.testing.assert_allclose(single, ref, rtol=1e-4, atol=1e-5 * float(jnp.abs(ref).max()))
     # complex inputs (max has no order on complex numbers: the select chains serve them)
-    quantity = dyn.module.quantities["mass_matrix"]
-    form = jax.vmap(_gathered.gathered(quantity.program, quantity.shape, quantity.function), in_axes=(0, None))
+    form = jax.vmap(_gathered.gathered(dyn.module.quantities["mass_matrix"]), in_axes=(0, None))
     p = dyn.param_vector()
     m = form(q.astype(jnp.complex128), p.astype(jnp.complex128))
     assert m.dtype == jnp.complex128

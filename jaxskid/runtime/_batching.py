@@ -80,4 +80,6 @@ def vmapped(fn: Callable, batch: tuple, inputs: Sequence[tuple[jax.Array | None,
         args.append(flat)
         axes.append(0)
     out = jax.vmap(fn, in_axes=tuple(axes))(*args)
-    return out[:size].reshape((*batch, *out.shape[1:]))
+    if padded > size:
+        out = out[:size]
+    return out.reshape((*batch, *out.shape[1:]))

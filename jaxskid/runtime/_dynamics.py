@@ -376,8 +376,7 @@ class Dynamics(QuantitySet):
     def _gathered(self, name: str) -> Callable:
         """The gathered form of the matrix ``name`` (:mod:`jaxskid.runtime._gathered`), with the quantity's
         derivative rules."""
-        quantity = self.module.quantities[name]
-        fn = gathered(quantity.program, quantity.shape, quantity.function)
+        fn = gathered(self.module.quantities[name])
         if name in self._rules:
             fn = self._rules[name](fn)
         return _traced_once(fn, name)

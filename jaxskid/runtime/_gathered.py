@@ -32,9 +32,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._generated import GeneratedQuantity
+
 CHUNK = 300
-"""Outputs of one reduce, at most (module docstring, step 1). 300 measured the shortest compile of the G1's
-Coriolis matrix and regressor (29 DOF; chunks of 150 and 700 compiled several times longer)."""
+"""Outputs of one reduce, at most (module docstring, step 1). The G1's Coriolis matrix (29 DOF) compiled in 33 s
+with chunks of 300 through :class:`jaxskid.Dynamics`, 40-42 s with chunks of 150 or 600."""
 
 LANES = 2
 """The reduced axis: two copies of every value."""
@@ -44,56 +46,52 @@ def _maximum(x: tuple, y: tuple) -> tuple:
     return tuple(jax.lax.max(a, b) for a, b in zip(x, y))
 
 
-def _distinct(entries: dict) -> tuple[list, dict]:
-    """``(values, where)``: the distinct values of ``entries`` (``{flat index: value}``; one object
-    stored under several indices counts once) and, for each flat index of ``entries``, the position of its
-    value."""
-    values, where, seen = [], {}, {}
+def _distinct(entries: dict, size: int) -> tuple[list, np.ndarray]:
+    """``(values, index)``: the distinct values of ``entries`` (``{flat index: value}``; one object stored under
+    several indices counts once) and, for each of the result's ``size`` flat indices, the position of its value
+    (``len(values)``, the zero column, where ``entries`` has none)."""
+    values, seen = [], {}
+    index = np.full(size, -1, dtype=np.int32)
     for k in sorted(entries):
         v = entries[k]
         if id(v) not in seen:
             seen[id(v)] = len(values)
             values.append(v)
-        where[k] = seen[id(v)]
-    return values, where
+        index[k] = seen[id(v)]
+    index[index < 0] = len(values)
+    return values, index
 
 
-def _assembled(program: Callable, shape: tuple[int, ...], args) -> jax.Array:
-    """The result of ``program`` on one state, by the gathered form (module docstring)."""
+def _assembled(quantity: GeneratedQuantity, args) -> jax.Array:
+    """The result of ``quantity``'s program on one state, by the gathered form (module docstring)."""
     dtype = jnp.result_type(*args)
-    entries = program(*args, lambda x: jnp.broadcast_to(x, (LANES,)), entries=True)
-    values, where = _distinct(entries)
+    entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, (LANES,)), entries=True)
+    values, index = _distinct(entries, math.prod(quantity.shape))
     lanes = [jnp.broadcast_to(jnp.asarray(v, dtype), (LANES,)) for v in values]
     outputs = []
     for start in range(0, len(lanes), CHUNK):
         part = tuple(lanes[start:start + CHUNK])
         low = (jnp.asarray(-jnp.inf, dtype),) * len(part)
         outputs += jax.lax.reduce(part, low, _maximum, (0,))
-    index = np.full(math.prod(shape), len(values), dtype=np.int32)
-    for k, position in where.items():
-        index[k] = position
     table = jnp.stack([*outputs, jnp.zeros((), dtype)])
-    return jnp.take(table, index, mode="clip").reshape(shape)
+    return jnp.take(table, index, mode="clip").reshape(quantity.shape)
 
 
-def gathered(program: Callable, shape: tuple[int, ...], broadcast: Callable) -> Callable:
-    """``f(*state, p)`` of one state, to map with ``jax.vmap``: ``program`` (a generated quantity's program,
-    :class:`jaxskid._generated.GeneratedQuantity`) by the gathered form, differentiated in forward mode
-    through the program on unbroadcast values, as the generated function is. ``broadcast`` (the generated
-    function) serves complex inputs: ``max`` has no order on them."""
-
-    def plain(*args):
-        return program(*args, lambda x: x)
+def gathered(quantity: GeneratedQuantity) -> Callable:
+    """``f(*state, p)`` of one state, to map with ``jax.vmap``: ``quantity``'s program by the gathered form,
+    differentiated in forward mode through the program on unbroadcast values (:meth:`GeneratedQuantity.single`),
+    as the generated function is. The generated function serves complex inputs: ``max`` has no order on them."""
+    single = quantity.single()
 
     @jax.custom_jvp
     def f(*args):
         if jnp.issubdtype(jnp.result_type(*args), jnp.complexfloating):
-            return broadcast(*args)
-        return _assembled(program, shape, args)
+            return quantity.function(*args)
+        return _assembled(quantity, args)
 
     @f.defjvp
     def _derivative(primals, tangents):
-        return f(*primals), jax.jvp(plain, primals, tangents)[1]
+        return f(*primals), jax.jvp(single, primals, tangents)[1]
 
     return f
 
