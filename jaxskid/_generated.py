@@ -184,7 +184,8 @@ class GeneratedQuantity:
         return functools.partial(_single, self.program)
 
     def entries(self) -> Callable:
-        """``f(*state, p) -> {flat index: value}``: the structurally nonzero entries, row-major."""
+        """``f(*state, p) -> {flat index: value}``: the structurally nonzero entries by row-major flat index, in
+        the order the program computes them."""
         return functools.partial(_entries, self.program)
 
 

@@ -40,7 +40,7 @@ from ..equations._derive import Equations
 from ._common import Program, Layout, NumberTweaks, statements, unravel
 from ._printing import FastArithmetic
 
-GENERATOR_VERSION = "21"
+GENERATOR_VERSION = "22"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 
@@ -147,6 +147,18 @@ _MAX_NESTING = 64
 """Selects nested in one expression of an output's where chain, at most (see :func:`_assemble`)."""
 
 
+def computed_order(k: Program) -> list[int]:
+    """The flat indices of ``k``'s structurally nonzero entries in the order its program computes them (by the
+    last statement each reads; row-major among equals). Entries computed near each other share most of their
+    statements, which is what :mod:`jaxskid.runtime._gathered` groups them by."""
+    position = {s: i for i, (s, _) in enumerate(k.body)}
+
+    def last(i: int) -> int:
+        return max((position.get(s, -1) for s in k.outputs[i].free_symbols), default=-1)
+
+    return sorted((i for i, v in enumerate(k.outputs) if v != 0), key=last)
+
+
 def function_source(layout: Layout, k: Program, printer: JaxPrinter) -> str:
     """Source of one quantity: ``_name(*args, p, spread, entries=False)``, the program (``spread`` broadcasts
     each input entry to the output's shape, or is the identity; ``entries=True`` returns the structurally
@@ -161,7 +173,7 @@ def function_source(layout: Layout, k: Program, printer: JaxPrinter) -> str:
     lines = [f"def _{k.name}({args}, spread{', entries=False' if k.shape else ''}):"]
     lines += ["    " + line for line in statements(k, printer, read)]
     if k.shape:  # the entries form: the structurally nonzero entries by flat index, unassembled
-        nonzero = ", ".join(f"{i}: {printer.doprint(v)}" for i, v in enumerate(k.outputs) if v != 0)
+        nonzero = ", ".join(f"{i}: {printer.doprint(k.outputs[i])}" for i in computed_order(k))
         lines += ["    if entries:", f"        return {{{nonzero}}}"]
     lines += ["    " + line for line in _assemble(k.shape, k.outputs, printer, f"jnp.result_type({k.args[0]}, p)")]
     spread = f"_spread({assembly_shape(k.shape)!r})" if k.shape else "_same"

@@ -301,7 +301,8 @@ class Dynamics(QuantitySet):
 
     def entries(self, name: str) -> Callable:
         """The generated function of one state returning its structurally nonzero entries unassembled,
-        ``f(*state, p) -> {flat index: scalar}`` (row-major; absent: zero for every state and parameter):
+        ``f(*state, p) -> {flat index: scalar}`` (row-major flat indices, in the order the program computes
+        them; absent: zero for every state and parameter):
         the sparsity pattern is known when the caller is traced (:mod:`jaxskid.runtime._sparse`)."""
         if name not in self._entries:
             self.signature(name)

@@ -20,7 +20,7 @@ from math import comb
 import sympy as sp
 
 from ..model import _spatial as sa
-from ._coriolis import coriolis_wrench
+from ._coriolis import coriolis_wrench, skew_christoffel
 from ._crba import apply_composite
 from ._derivation import Derivation, memoized
 from ._drives import with_drives
@@ -132,27 +132,25 @@ def coriolis_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
     """``d^r/dt^r (M J'_{i,c} + B(V_i) J_{i,c})``, ``B(V) X = 1/2 (M [V, X] + V x* (M X) + X x* (M V))``
     (``d.coriolis == "christoffel"``) or ``B(V) X = V x* (M X)`` (``"skidy"``).
 
-    B is bilinear, so the Leibniz sum ``sum_s C(r, s) B(V^(s), J^(r-s))`` applies M once to the sum of
-    the brackets, and the products ``M J^(j)`` and ``M V^(s)`` are shared between orders.
+    B is bilinear, so the Leibniz sum is ``M J^(r+1) + sum_s C(r, s) B(V^(s)) J^(r-s)``, with the matrix
+    ``B(V^(s))`` formed once per body and order.
     """
     if r == 0:
         return coriolis_wrench(d, i, c)
     if d.coriolis == "skidy":
         return _skidy_wrench_derivative(d, i, c, r)
-    m = inertia(d, i)
-    brackets, duals = [], []
+    out = sa.inertia_apply(inertia(d, i), jacobian_column_derivative(d, i, c, r + 1))
     for s in range(r + 1):
-        v, x, w = twist_derivative(d, i, s), jacobian_column_derivative(d, i, c, r - s), comb(r, s)
-        if is_zero(x):
-            continue
-        h = d.tape.vec(sa.inertia_apply(m, v))
-        mx = d.tape.vec(sa.inertia_apply(m, x))
-        brackets.append(sa.scale(sa.ad_apply(v, x), w))
-        duals.append(sa.scale(sa.add(sa.coad_apply(v, mx), sa.coad_apply(x, h)), w))
-    half = sp.Rational(1, 2)
-    inner = sa.add(jacobian_column_derivative(d, i, c, r + 1), sa.scale(sa.add(zero6(), *brackets), half))
-    out = sa.add(sa.inertia_apply(m, d.tape.vec(inner)), sa.scale(sa.add(zero6(), *duals), half))
+        x = jacobian_column_derivative(d, i, c, r - s)
+        if not is_zero(x):
+            out = sa.add(out, sa.scale(sa.matvec(_christoffel_derivative(d, i, s), x), comb(r, s)))
     return d.tape.vec(out)
+
+
+@memoized
+def _christoffel_derivative(d: Derivation, i: int, s: int) -> list[list]:
+    """``B(V_i^(s))``, skew-symmetric (:func:`~._coriolis.skew_christoffel`), once per body and order."""
+    return skew_christoffel(d, inertia(d, i), twist_derivative(d, i, s))
 
 
 def _skidy_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
