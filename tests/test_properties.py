@@ -240,3 +240,32 @@ def test_jax_lowering_and_recursive_evaluation_match_pinocchio(robot, tmp_path_f
             scale = term_scale(expected, s, k)
             assert rel_err(lowered[name][k], expected[name][k], scale) <= TOL, (name, k)
             assert rel_err(recursive, expected[name][k], scale) <= TOL, (name, k)
+
+
+def test_christoffel_matrix_is_the_three_term_product_and_skew():
+    """The per-body ``B(V)`` of the Christoffel Coriolis matrix (``jaxskid.symbolic._coriolis.skew_christoffel``)
+    applied to a twist equals Echeandia & Wensing's three terms ``1/2 (M [V, X] + V x* (M X) + X x* (M V))``,
+    computed here in NumPy with 6x6 spatial matrices, which is skew-symmetric."""
+    from randrobot import random_robot
+
+    from jaxskid.symbolic import Derivation, Inputs
+    from jaxskid.symbolic._coriolis import skew_christoffel
+
+    def hat(a):
+        return np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+
+    def ad(v):  # [V, X] = ad(V) X for V = (w, v)
+        return np.block([[hat(v[:3]), np.zeros((3, 3))], [hat(v[3:]), hat(v[:3])]])
+
+    rng = np.random.default_rng(3)
+    robot = random_robot(rng, 2)
+    d = Derivation(robot, Inputs.of(robot))
+    a = rng.normal(size=(3, 3))
+    h = rng.normal(size=3)
+    m = np.block([[a @ a.T + 2 * np.eye(3), hat(h)], [-hat(h), 1.7 * np.eye(3)]])
+    v = rng.normal(size=6)
+    b = np.array(skew_christoffel(d, [[sp.Float(e) for e in row] for row in m], [sp.Float(e) for e in v]), dtype=float)
+    # column c of the three-term map is its value at the unit twist e_c
+    expected = np.stack([0.5 * (m @ ad(v) @ x - ad(v).T @ (m @ x) - ad(x).T @ (m @ v)) for x in np.eye(6)], axis=1)
+    assert np.allclose(b, expected, rtol=1e-13, atol=1e-13)
+    assert np.allclose(expected, -expected.T, rtol=1e-13, atol=1e-13)
