@@ -233,12 +233,18 @@ def derive(
 
 
 def _outputs(spec, d: Derivation, route: str) -> list:
-    """The flat outputs of one quantity on ``d``'s tape, by ``route``; a pullback from its quantity's outputs."""
-    if spec.pullback_of is not None:
-        base = QUANTITIES[spec.pullback_of]
-        return sym.pullback(d, _outputs(base, d, route), base.args, spec.args[-1])
-    builder = spec.builder(route)
-    return mimic.build(spec.name, builder, d) if d.robot.mimic_joints else builder(d)
+    """The flat outputs of one quantity on ``d``'s tape, by ``route``; a pullback from its quantity's outputs.
+    Built once per derivation: a quantity and its pullback share them."""
+    key = ("outputs", spec.name, route)
+    if key not in d.memo:
+        if spec.pullback_of is not None:
+            base = QUANTITIES[spec.pullback_of]
+            out = sym.pullback(d, _outputs(base, d, route), base.args, spec.args[-1])
+        else:
+            builder = spec.builder(route)
+            out = mimic.build(spec.name, builder, d) if d.robot.mimic_joints else builder(d)
+        d.memo[key] = out
+    return d.memo[key]
 
 
 def _progress(names, enabled):

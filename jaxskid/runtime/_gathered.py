@@ -69,32 +69,55 @@ def _distinct(entries: dict, size: int) -> tuple[list, np.ndarray]:
     return values, index
 
 
-def _assembled(quantity: GeneratedQuantity, args) -> jax.Array:
-    """The result of ``quantity``'s program on one state, by the gathered form (module docstring)."""
+def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> jax.Array:
+    """The result of ``quantity``'s program by the gathered form (module docstring): on one state, or with
+    ``batch``, on a batch whose arrays carry it on their last axis (the program reads an entry as a vector of
+    the batch), the result's batch first."""
     dtype = jnp.result_type(*args)
-    entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, (LANES,)), entries=True)
+    lanes_shape = (LANES,) if batch is None else (LANES, batch)
+    entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
     values, index = _distinct(entries, math.prod(quantity.shape))
-    lanes = [jnp.broadcast_to(jnp.asarray(v, dtype), (LANES,)) for v in values]
+    lanes = [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in values]
     outputs = []
     for start in range(0, len(lanes), CHUNK):
         part = tuple(lanes[start:start + CHUNK])
         low = (jnp.asarray(-jnp.inf, dtype),) * len(part)
         outputs += jax.lax.reduce(part, low, _maximum, (0,))
-    table = jnp.stack([*outputs, jnp.zeros((), dtype)])
-    return jnp.take(table, index, mode="clip").reshape(quantity.shape)
+    if batch is None:
+        table = jnp.stack([*outputs, jnp.zeros((), dtype)])
+        return jnp.take(table, index, mode="clip").reshape(quantity.shape)
+    table = jnp.stack([*outputs, jnp.zeros((batch,), dtype)], axis=-1)
+    return jnp.take(table, index, axis=1, mode="clip").reshape((batch, *quantity.shape))
+
+
+def _one_state(quantity: GeneratedQuantity) -> Callable:
+    """``_assembled`` of one state, which ``jax.vmap`` maps by tracing the program once on vectors of the batch
+    (``custom_vmap``) instead of through its batching of every scalar operation: the G1's Coriolis matrix
+    (27,000 operations) traced in 2.1 s so, 3.6 s through ``vmap``."""
+
+    @jax.custom_batching.custom_vmap
+    def one(*args):
+        return _assembled(quantity, args)
+
+    @one.def_vmap
+    def _mapped(size, batched, *args):
+        last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
+        return _assembled(quantity, last, size), True
+
+    return one
 
 
 def gathered(quantity: GeneratedQuantity) -> Callable:
     """``f(*state, p)`` of one state, to map with ``jax.vmap``: ``quantity``'s program by the gathered form,
     differentiated in forward mode through the program on unbroadcast values (:meth:`GeneratedQuantity.single`),
     as the generated function is. The generated function serves complex inputs: ``max`` has no order on them."""
-    single = quantity.single()
+    single, one = quantity.single(), _one_state(quantity)
 
     @jax.custom_jvp
     def f(*args):
         if jnp.issubdtype(jnp.result_type(*args), jnp.complexfloating):
             return quantity.function(*args)
-        return _assembled(quantity, args)
+        return one(*args)
 
     @f.defjvp
     def _derivative(primals, tangents):

@@ -97,7 +97,7 @@ def partials(expr: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
     for term in expr.args if expr.is_Add else (expr,):
         if term.is_Number:
             continue
-        coeff, factors = term.as_coeff_mul()
+        coeff, factors = term.as_coeff_mul(rational=False)  # a float coefficient too, not a factor
         simple = all(f.is_Symbol or (f.is_Pow and f.base.is_Symbol and f.exp.is_Integer and f.exp > 0)
                      for f in factors)
         if not simple:
