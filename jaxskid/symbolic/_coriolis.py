@@ -14,7 +14,7 @@ factorisation ``B(V)`` of the gyroscopic wrench, ``B(V) V = V x* (M V)``:
 Column k is assembled by a Newton-Euler backward pass over the bodies' wrenches ``M_i Jd_{i,k} +
 B(V_i) J_{i,k}``. The Christoffel ``B(V_i)`` is formed once per body as a skew-symmetric matrix
 (:func:`christoffel_matrix`), so that each column costs a body one product with it: the G1's C (29 DOF) has
-26,800 operations so, 46,600 with the three terms applied per column.
+26,800 operations so, where the three terms applied per column make 46,600.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from math import comb
 import sympy as sp
 
 from ..model import _spatial as sa
-from ._coriolis import coriolis_wrench, skew_christoffel
+from ._coriolis import christoffel_matrix, coriolis_wrench, skew_christoffel
 from ._crba import apply_composite
 from ._derivation import Derivation, memoized
 from ._drives import with_drives
@@ -149,7 +149,10 @@ def coriolis_wrench_derivative(d: Derivation, i: int, c: int, r: int) -> Vec:
 
 @memoized
 def _christoffel_derivative(d: Derivation, i: int, s: int) -> list[list]:
-    """``B(V_i^(s))``, skew-symmetric (:func:`~._coriolis.skew_christoffel`), once per body and order."""
+    """``B(V_i^(s))``, skew-symmetric (:func:`~._coriolis.skew_christoffel`), once per body and order (the
+    order 0 is C's own)."""
+    if s == 0:
+        return christoffel_matrix(d, i)
     return skew_christoffel(d, inertia(d, i), twist_derivative(d, i, s))
 
 
