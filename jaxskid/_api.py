@@ -11,6 +11,7 @@ from pathlib import Path
 from ._errors import ModelError, RequestError
 from .codegen import Layout
 from .codegen._c import emit_c, native_block, native_sources
+from .codegen._common import quantity_metadata
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
@@ -25,6 +26,7 @@ from .model._inertia_check import check_inertias
 from .model._robot import Robot
 from .model._standard import body_standard_map
 from .runtime._checks import checks_mode
+from .runtime._deferred import Deferred
 from .runtime._dynamics import Dynamics
 from .runtime._cuda import enabled as cuda_enabled
 from .runtime._ffi import enabled as native_enabled
@@ -100,7 +102,10 @@ def lower(
             (for ``Equations``: every quantity they hold), ``"all"`` for every quantity. For a robot, the
             quantities a requested one is differentiated with come too: ``forward_dynamics`` brings
             ``mass_matrix``, ``inverse_dynamics`` and ``inverse_dynamics_vjp``, which give its exact
-            derivatives (:mod:`jaxskid.runtime._implicit`) for gradients through rollouts.
+            derivatives (:mod:`jaxskid.runtime._implicit`) for gradients through rollouts. Where no native
+            kernel is built (``JAXSKID_NATIVE=0``, a GPU without CUDA kernels, a TPU), the pullbacks
+            (``<name>_vjp``) that were not asked for are derived when a gradient first needs them
+            (:mod:`jaxskid.runtime._deferred`).
         symbolic: the parameters that stay inputs of the generated functions; every other parameter is
             replaced by its default value (the ``assignments``). ``None`` keeps all parameters symbolic.
             Only for a robot: substitute before deriving for ``Equations``.
@@ -121,20 +126,14 @@ def lower(
             ``dyn.checks`` can be changed later (to ``"debug"`` only on a ``Dynamics`` lowered with it).
     """
     checks = checks_mode(checks)
-    if isinstance(model, Equations):
-        if symbolic is not None:
-            raise RequestError("lower: symbolic= needs a Robot; for Equations, derive from robot.substitute(...)")
-        if options is not None and options != model.options:
-            raise RequestError(f"lower: options {options} differ from the equations' {model.options}")
-        robot, names, options = model.robot, _derived(model, quantities), model.options
-        asked = names
-    else:
-        robot = model if symbolic is None else model.keep_symbolic(symbolic)
-        asked, options = resolve(robot, quantities), options or Options()
-        names = resolve(robot, [*asked, *(k for n in asked for k in QUANTITIES[n].derivatives)])
+    robot, asked, names, options = _request(model, quantities, symbolic, options)
     # where no kernel can run (JAXSKID_NATIVE=0 on CPU, JAXSKID_CUDA=0 on a GPU, a TPU), no C is printed
     c_kernels = native_enabled()
     native_c = c_kernels or cuda_enabled()
+    # and the pullbacks nobody asked for are made when a gradient first needs them (jaxskid.runtime._deferred)
+    deferred = () if native_c or isinstance(model, Equations) else \
+        tuple(k for k in names if QUANTITIES[k].pullback_of is not None and k not in asked)
+    names = tuple(k for k in names if k not in deferred)
     key = module_key(robot, names, options, native_c)
     if cache:
         default_compilation_cache()
@@ -154,7 +153,41 @@ def lower(
         found = store_entry(path, module, key)
     native_root = Path(cache_dir or default_cache_dir()) / "native" if cache else None
     return Dynamics(found, catalogue=tuple(QUANTITIES), native=tuple(NativeLibrary(s, native_root) for s in found.native),
-                    inertia=functools.partial(body_standard_map, robot), checks=checks)
+                    inertia=functools.partial(body_standard_map, robot), checks=checks,
+                    deferred=_deferred(robot, deferred, options, cache, cache_dir) if deferred else None)
+
+
+def _request(model: Robot | Equations, quantities, symbolic, options: Options | None) -> tuple:
+    """``(robot, asked, names, options)`` of a :func:`lower` call: the robot (its symbolic parameters kept), the
+    quantities asked for, those and the ones they are differentiated with, and the options."""
+    if isinstance(model, Equations):
+        if symbolic is not None:
+            raise RequestError("lower: symbolic= needs a Robot; for Equations, derive from robot.substitute(...)")
+        if options is not None and options != model.options:
+            raise RequestError(f"lower: options {options} differ from the equations' {model.options}")
+        names = _derived(model, quantities)
+        return model.robot, names, names, model.options
+    robot = model if symbolic is None else model.keep_symbolic(symbolic)
+    asked = resolve(robot, quantities)
+    return robot, asked, resolve(robot, [*asked, *(k for n in asked for k in QUANTITIES[n].derivatives)]), \
+        options or Options()
+
+
+def _deferred(robot: Robot, names: Sequence[str], options: Options, cache: bool, cache_dir) -> Deferred:
+    """The quantities ``names`` of ``robot`` as a module of their own, derived, printed and cached when one of
+    them is first used (:mod:`jaxskid.runtime._deferred`)."""
+    key = module_key(robot, names, options, False)
+    path = entry_path(cache_dir, robot.name, key) if cache else None
+
+    def load():
+        found = read_entry(path, key) if path is not None else None
+        if found is None:
+            eqs = derive(robot, names, options=options)
+            found = store_entry(path, module_source(Layout(eqs, names, jax_names)), key)
+        return found
+
+    specs = {k: QUANTITIES[k] for k in names}
+    return Deferred({k: quantity_metadata(q.args, q.shape(robot), q.equation, q.doc) for k, q in specs.items()}, load)
 
 
 def module_key(robot: Robot, names: Sequence[str], options: Options | None = None, native: bool = True) -> str:

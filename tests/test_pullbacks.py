@@ -223,6 +223,40 @@ def test_jax_form(monkeypatch):
     _check(dyn, batch=2, names=names)
 
 
+def test_pullbacks_deferred_without_native_kernels(monkeypatch, tmp_path):
+    """Where no native kernel is built, the pullbacks are a module of their own, made (and cached) when a
+    gradient first needs one: listed among the quantities from the start, with the signatures the module then
+    gives them, and the gradients checked as above. A second lowering finds both modules and derives nothing."""
+    monkeypatch.setenv("JAXSKID_NATIVE", "0")
+    robot = load("arm_3dof")
+    names = ["mass_matrix", "coriolis_matrix", "inverse_dynamics"]
+    dyn = jaxskid.lower(robot, names, cache_dir=tmp_path)
+    assert {f"{n}_vjp" for n in names} <= set(dyn.quantities)
+    assert len(list(tmp_path.glob("*.py"))) == 1  # the quantities' module only
+    announced = {n: dyn.signature(f"{n}_vjp") for n in names}
+    _check(dyn, batch=2, names=names)
+    assert len(list(tmp_path.glob("*.py"))) == 2
+    assert {n: dyn.signature(f"{n}_vjp") for n in names} == announced
+
+    def no_derivation(*args, **kwargs):
+        raise AssertionError("derived again")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(jaxskid._api, "derive", no_derivation)
+        again = jaxskid.lower(robot, names, cache_dir=tmp_path)
+        q, qd = _states(again, 0, args=("q", "qd"))
+        gradient = jax.grad(lambda p: jnp.sum(again.coriolis_matrix(q, qd, p) ** 2))(again.param_vector())
+    reference = jax.grad(lambda p: jnp.sum(dyn.coriolis_matrix(q, qd, p) ** 2))(dyn.param_vector())
+    np.testing.assert_allclose(gradient, reference, rtol=1e-12, atol=1e-12)
+    # asked for, a pullback is lowered with its quantity; with native kernels on, every pullback is
+    explicit = jaxskid.lower(robot, ["mass_matrix", "mass_matrix_vjp"], cache_dir=tmp_path / "asked")
+    assert explicit.quantities == ("mass_matrix", "mass_matrix_vjp") and explicit.module.quantities.keys() >= {
+        "mass_matrix_vjp"}
+    monkeypatch.undo()
+    native = jaxskid.lower(robot, names, cache_dir=tmp_path / "native")
+    assert {f"{n}_vjp" for n in names} <= set(native.module.quantities)
+
+
 @pytest.mark.slow
 def test_g1():
     robot = jaxskid.load(ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf")

@@ -214,8 +214,7 @@ class Layout:
             "parameters": list(self.parameters),
             "defaults": r.default_params(),
             "standard_names": list(standard_parameter_names(r)),
-            "quantities": {n: {"args": list(q.args), "shape": list(q.shape), "equation": q.equation, "doc": q.doc}
-                           for n, q in quantities.items()},
+            "quantities": {n: quantity_metadata(q.args, q.shape, q.equation, q.doc) for n, q in quantities.items()},
             **driven,
         }
 
@@ -259,6 +258,11 @@ class Layout:
                 lines.append(f"  {', '.join(r.end_effectors)}")
         lines += ["", *calling]
         return lines
+
+
+def quantity_metadata(args: Sequence[str], shape: Sequence[int], equation: str, doc: str) -> dict:
+    """A quantity's entry in a generated module's ``METADATA["quantities"]`` (:meth:`Layout.metadata`)."""
+    return {"args": list(args), "shape": list(shape), "equation": equation, "doc": doc}
 
 
 def program(eqs: Equations, name: str, rename: dict, renamed: dict) -> Program:

@@ -26,6 +26,7 @@ from ._cuda_rollout import rollout_kernels
 from ._ffi import enabled as native_enabled, library, log, native_quantity, target
 from ._batching import batch_shape, float_arrays, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
+from ._deferred import Deferred, OnDemand
 from ._forward import accelerations, forward_dynamics
 from ._gathered import gathered, padded_batch
 from ._checks import check_finite, check_inputs
@@ -92,30 +93,40 @@ class Dynamics(QuantitySet):
         native: the module's native libraries (:class:`jaxskid._generated.NativeBuild`), each built when one
             of its kernels is first used; none: every quantity runs in its JAX form.
         inertia, checks: as for :class:`~jaxskid.runtime._base.QuantitySet`.
+        deferred: quantities of a second module, made when one of them is first used
+            (:class:`~jaxskid.runtime._deferred.Deferred`: the pullbacks, where no native kernel is built); they
+            are listed among the quantities from the start.
     """
 
     _made = "lowered"
     _remedy = "jaxskid.lower(robot, quantities=[..., {name!r}])"
 
     def __init__(self, module: GeneratedModule, *, catalogue: Collection[str] = (),
-                 native: Sequence[NativeBuild] = (), inertia: Callable | None = None, checks: bool = True):
+                 native: Sequence[NativeBuild] = (), inertia: Callable | None = None, checks: bool = True,
+                 deferred: Deferred | None = None):
         meta = module.metadata
         quantities = meta["quantities"]
-        super().__init__(**metadata_fields(meta), catalogue=catalogue, inertia=inertia, checks=checks)
+        later = deferred.quantities if deferred is not None else {}
+        order = {k: i for i, k in enumerate(catalogue)}
+        names = sorted([*quantities, *(k for k in later if k not in quantities)], key=lambda k: order.get(k, -1))
+        listed = {k: quantities[k] if k in quantities else later[k] for k in names}
+        super().__init__(**metadata_fields({**meta, "quantities": listed}), catalogue=catalogue, inertia=inertia,
+                         checks=checks)
         self.module = module
         self.source = module.source
         self.path = module.path
-        self._meta = quantities
+        self._meta = listed
+        self._deferred = deferred
         generated = module.quantities
         # Each generated function is jitted: traced once per shape and dtype, it is one call in the programs
-        # that use it, whose transformations JAX caches (see _traced_once)
-        self._raw: dict[str, Callable] = {name: _traced_once(generated[name].function) for name in quantities}
-        self._plain: dict[str, Callable] = {
-            name: _traced_once(generated[name].single(), name) for name in quantities
-        }
-        self._entries: dict[str, Callable] = {
-            name: _traced_once(generated[name].entries(), name) for name, m in quantities.items() if m["shape"]
-        }
+        # that use it, whose transformations JAX caches (see _traced_once); a deferred quantity's when first read
+        self._raw: dict[str, Callable] = OnDemand(
+            {name: _traced_once(generated[name].function) for name in quantities}, self._fill_deferred, later)
+        self._plain: dict[str, Callable] = OnDemand(
+            {name: _traced_once(generated[name].single(), name) for name in quantities}, self._fill_deferred, later)
+        self._entries: dict[str, Callable] = OnDemand(
+            {name: _traced_once(generated[name].entries(), name) for name, m in quantities.items() if m["shape"]},
+            self._fill_deferred, later)
         # reverse mode by the closed-form pullbacks, where they were lowered (jaxskid.runtime._pullback)
         self._rules: dict[str, Callable[[Callable], Callable]] = {}
         for name in quantities:
@@ -144,11 +155,25 @@ class Dynamics(QuantitySet):
             name: Quantity(name, tuple(m["args"]), tuple(m["shape"]), m["equation"], m["doc"],
                            tuple(self.argument_shape(a) for a in m["args"]), name == "inverse_dynamics",
                            self.floating_base)
-            for name, m in quantities.items()
+            for name, m in listed.items()
         }
         for name, quantity in self._quantities.items():
             if not hasattr(type(self), name):
                 setattr(self, name, quantity.function(functools.partial(self._call, name)))
+
+    def _fill_deferred(self) -> None:
+        """The functions of the deferred quantities (:mod:`jaxskid.runtime._deferred`), from their module, made
+        now (when one of them is first read: a gradient traced)."""
+        module = self._deferred.module()
+        if list(module.metadata["parameters"]) != list(self.parameters):
+            raise RuntimeError(f"{self.robot_name}: the deferred quantities' module orders the parameters "
+                               "differently; clear jaxskid's cache (jaxskid.cache_dir())")
+        for name, m in self._deferred.quantities.items():
+            fn = module.quantities[name]
+            self._raw.setdefault(name, _traced_once(fn.function))
+            self._plain.setdefault(name, _traced_once(fn.single(), name))
+            if m["shape"]:
+                self._entries.setdefault(name, _traced_once(fn.entries(), name))
 
     def _pullback(self, name: str) -> Callable | None:
         """``pull(*state, p, w)``: the cotangents of ``name``'s arguments for a cotangent ``w`` of its result,
