@@ -12,6 +12,7 @@ from ._errors import ModelError, RequestError
 from .codegen import Layout
 from .codegen._c import emit_c, native_block, native_sources
 from .codegen._common import quantity_metadata
+from ._generated import GeneratedModule
 from .codegen._jax import GENERATOR_VERSION, jax_names, module_source
 from .equations import QUANTITIES, Equations, Options, derive, resolve
 from .lowering._cache import cache_dir as default_cache_dir
@@ -154,7 +155,7 @@ def lower(
     native_root = Path(cache_dir or default_cache_dir()) / "native" if cache else None
     return Dynamics(found, catalogue=tuple(QUANTITIES), native=tuple(NativeLibrary(s, native_root) for s in found.native),
                     inertia=functools.partial(body_standard_map, robot), checks=checks,
-                    deferred=_deferred(robot, deferred, options, cache, cache_dir) if deferred else None)
+                    deferred=_deferred(robot, deferred, found, options, cache, cache_dir) if deferred else None)
 
 
 def _request(model: Robot | Equations, quantities, symbolic, options: Options | None) -> tuple:
@@ -173,9 +174,10 @@ def _request(model: Robot | Equations, quantities, symbolic, options: Options | 
         options or Options()
 
 
-def _deferred(robot: Robot, names: Sequence[str], options: Options, cache: bool, cache_dir) -> Deferred:
+def _deferred(robot: Robot, names: Sequence[str], beside: GeneratedModule, options: Options, cache: bool,
+              cache_dir) -> Deferred:
     """The quantities ``names`` of ``robot`` as a module of their own, derived, printed and cached when one of
-    them is first used (:mod:`jaxskid.runtime._deferred`)."""
+    them is first used (:mod:`jaxskid.runtime._deferred`), taking ``p`` as the module ``beside`` it does."""
     key = module_key(robot, names, options, False)
     path = entry_path(cache_dir, robot.name, key) if cache else None
 
@@ -186,8 +188,9 @@ def _deferred(robot: Robot, names: Sequence[str], options: Options, cache: bool,
             found = store_entry(path, module_source(Layout(eqs, names, jax_names)), key)
         return found
 
-    specs = {k: QUANTITIES[k] for k in names}
-    return Deferred({k: quantity_metadata(q.args, q.shape(robot), q.equation, q.doc) for k, q in specs.items()}, load)
+    announced = {k: quantity_metadata(q.args, q.shape(robot), q.equation, q.doc)
+                 for k, q in ((k, QUANTITIES[k]) for k in names)}
+    return Deferred(announced, beside.metadata["parameters"], load)
 
 
 def module_key(robot: Robot, names: Sequence[str], options: Options | None = None, native: bool = True) -> str:

@@ -257,6 +257,21 @@ def test_pullbacks_deferred_without_native_kernels(monkeypatch, tmp_path):
     assert {f"{n}_vjp" for n in names} <= set(native.module.quantities)
 
 
+def test_deferred_module_must_match_what_was_announced():
+    """A deferred module (a stale or foreign cache entry) whose signatures or parameter order differ from the
+    ones announced is refused with a message that says what to do, not used."""
+    from jaxskid.runtime._deferred import Deferred
+
+    module = jaxskid.lower(load("arm_3dof"), ["mass_matrix", "mass_matrix_vjp"], cache=False).module
+    made = module.metadata
+    vjp = {"mass_matrix_vjp": made["quantities"]["mass_matrix_vjp"]}
+    assert Deferred(vjp, made["parameters"], lambda: module).module() is module
+    wrong_shape = {"mass_matrix_vjp": {**vjp["mass_matrix_vjp"], "shape": [1]}}
+    for quantities, parameters in ((wrong_shape, made["parameters"]), (vjp, made["parameters"][::-1])):
+        with pytest.raises(RuntimeError, match="clear jaxskid's cache"):
+            Deferred(quantities, parameters, lambda: module).module()
+
+
 @pytest.mark.slow
 def test_g1():
     robot = jaxskid.load(ERD / "g1_description/urdf/g1_29dof_rev_1_0.urdf")

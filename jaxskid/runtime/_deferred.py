@@ -12,7 +12,7 @@ lists them among its quantities and its functions reach them as if they had been
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 from .._generated import GeneratedModule
 
@@ -23,11 +23,14 @@ class Deferred:
     Args:
         quantities: their metadata by name, as a generated module's ``METADATA["quantities"]`` has it
             (``args``, ``shape``, ``equation``, ``doc``).
+        parameters: the order of ``p`` the module must take (that of the module lowered with it).
         load: makes the module (derives, prints and caches it, or reads it from the cache); called once.
     """
 
-    def __init__(self, quantities: Mapping[str, dict], load: Callable[[], GeneratedModule]):
+    def __init__(self, quantities: Mapping[str, dict], parameters: Sequence[str],
+                 load: Callable[[], GeneratedModule]):
         self.quantities: dict[str, dict] = dict(quantities)
+        self._parameters = list(parameters)
         self._load = load
         self._lock = threading.Lock()
         self._module: GeneratedModule | None = None
@@ -39,9 +42,10 @@ class Deferred:
                 module = self._load()
                 made = module.metadata["quantities"]
                 wrong = [k for k, m in self.quantities.items() if made.get(k) != m]
-                if wrong:
-                    raise RuntimeError(f"the module of the deferred quantities {', '.join(wrong)} does not give "
-                                       "them the signatures announced; clear jaxskid's cache (jaxskid.cache_dir())")
+                if wrong or list(module.metadata["parameters"]) != self._parameters:
+                    raise RuntimeError(f"the module of the deferred quantities {', '.join(self.quantities)} does not "
+                                       "give them the signatures and parameter order announced; clear jaxskid's "
+                                       "cache (jaxskid.cache_dir())")
                 self._module = module
         return self._module
 

@@ -165,9 +165,6 @@ class Dynamics(QuantitySet):
         """The functions of the deferred quantities (:mod:`jaxskid.runtime._deferred`), from their module, made
         now (when one of them is first read: a gradient traced)."""
         module = self._deferred.module()
-        if list(module.metadata["parameters"]) != list(self.parameters):
-            raise RuntimeError(f"{self.robot_name}: the deferred quantities' module orders the parameters "
-                               "differently; clear jaxskid's cache (jaxskid.cache_dir())")
         for name, m in self._deferred.quantities.items():
             fn = module.quantities[name]
             self._raw.setdefault(name, _traced_once(fn.function))
