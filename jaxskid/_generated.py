@@ -87,11 +87,24 @@ class NativeSource:
         """The quantities with a kernel in this library."""
         return tuple(k.name for k in self.kernels)
 
+    @property
+    def kkt(self) -> bool:
+        """Whether it has the backward step of constrained forward dynamics: the backward step of forward
+        dynamics and the vector forms of :data:`KKT_QUANTITIES`."""
+        return self.backward and all(self.vectors.get(k) is not None for k in KKT_QUANTITIES)
+
 
 GPU_ONLY = frozenset({"inverse_dynamics", "gravity_torques", "coriolis_torques"})
 """Vector quantities whose kernel serves on a GPU only: on CPU XLA fuses their programs with the caller's (the
 CPU's C library leaves them out); on a GPU, XLA took far longer to compile their programs than NVRTC the
 kernels."""
+
+
+KKT_QUANTITIES = ("mass_matrix", "inverse_dynamics_vjp", "constraint_jacobian", "constraint_jacobian_vjp",
+                  "constraint_drift_vjp", "constraint_residual_vjp")
+"""The quantities whose C the native backward step of constrained forward dynamics is built from
+(:mod:`jaxskid.lowering._ffi_kkt`): those of the backward step of forward dynamics, the constraint Jacobian and
+the pullbacks of the constraint quantities."""
 
 
 class NativeBuild(Protocol):

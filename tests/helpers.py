@@ -140,3 +140,29 @@ def load_example(name: str):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def native_kkt_errors(dyn, q, qd, tau, stabilization=None, regularization: float = 0.0) -> tuple[float, float]:
+    """The reverse-mode gradient of a weighted sum of constrained forward dynamics' (qdd, lambda) with respect to
+    (q, qd, tau, p), computed with the native backward step (``kkt_vjp``, which must be in the compiled program)
+    against the same rule traced in JAX and against forward mode (``jax.jacfwd``, the tangent rule): their
+    largest relative errors."""
+    p = dyn.param_vector()
+    rows = dyn.signature("constraint_jacobian")[1][0]
+    w = np.random.default_rng(3).normal(size=dyn.nv + rows)
+
+    def loss(*x):
+        qdd, lam = dyn.constrained_forward_dynamics(*x, stabilization=stabilization, regularization=regularization)
+        return jax.numpy.concatenate([qdd, lam]) @ w
+
+    grad = jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3)))
+    assert "jaxskid_kkt_vjp" in grad.lower(q, qd, tau, p).as_text()
+    native = grad(q, qd, tau, p)
+    forward = jax.jacfwd(loss, argnums=(0, 1, 2, 3))(q, qd, tau, p)
+    built = dyn.native_target
+    try:
+        dyn.native_target = lambda name="fd_vjp": None if name == "kkt_vjp" else built(name)
+        traced = jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3)))(q, qd, tau, p)
+    finally:
+        del dyn.native_target
+    return (max(rel_err(a, b) for a, b in zip(native, traced)), max(rel_err(a, b) for a, b in zip(native, forward)))

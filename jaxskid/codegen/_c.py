@@ -19,7 +19,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.cxx import CXX11CodePrinter
 
-from .._generated import GPU_ONLY, NativeKernel, NativeSource, Statement, VectorKernel
+from .._generated import GPU_ONLY, KKT_QUANTITIES, NativeKernel, NativeSource, Statement, VectorKernel
 from ._common import Program, Layout, NumberTweaks, comment, double, portable_names, shape_str, statements
 from ._printing import FastArithmetic
 
@@ -204,7 +204,8 @@ def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequ
     its own. Its ``kernels`` list the library's :func:`native_quantities`, each a
     :class:`~jaxskid._generated.NativeKernel` (input sizes and core ranks with the parameters last, output
     size and rank); ``backward`` says whether it has the backward step of forward dynamics (when ``names`` hold
-    :data:`FFI_QUANTITIES`). The kernels of the quantities in ``first`` come in a library of their own,
+    :data:`FFI_QUANTITIES`), and with it the backward step of constrained forward dynamics when they hold
+    :data:`~jaxskid._generated.KKT_QUANTITIES` too. The kernels of the quantities in ``first`` come in a library of their own,
     first; the others, with the backward step, in the next: the quantities that only come with the requested
     ones, for their derivatives. A generator: the caller can start building one library while the next is
     printed. ``naming``: the symbols' renaming (:class:`~jaxskid.codegen._common.Layout`); the JAX module's
@@ -214,14 +215,16 @@ def native_sources(eqs, names: Sequence[str], naming=portable_names, first: Sequ
     now = tuple(n for n in kernels if n in first)
     rest = tuple(n for n in kernels if n not in now)
     backward = set(FFI_QUANTITIES) <= set(names)
+    # with the constraint quantities' pullbacks, the backward step of constrained forward dynamics too
+    kkt = KKT_QUANTITIES if backward and set(KKT_QUANTITIES) <= set(names) else ()
     if now:
         yield _library(eqs, now, False, naming)
     if rest or backward:
-        yield _library(eqs, rest, backward, naming)
+        yield _library(eqs, rest, backward, naming, kkt)
 
 
-def _library(eqs, kernels: tuple[str, ...], backward: bool, naming) -> NativeSource:
-    layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kernels])), naming)
+def _library(eqs, kernels: tuple[str, ...], backward: bool, naming, kkt: tuple[str, ...] = ()) -> NativeSource:
+    layout = Layout(eqs, tuple(dict.fromkeys([*(FFI_QUANTITIES if backward else ()), *kkt, *kernels])), naming)
     printer = VectorPrinter()
     vectors = {k.name: vector_kernel(k, printer) for k in layout.programs}
     # the handlers call the functions over vectors of states; the backward step falls back to the functions of

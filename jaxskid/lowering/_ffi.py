@@ -14,7 +14,9 @@ for a result of n^2 or n * 10 n entries, into select chains whose work grows wit
 * ``jaxskid_fd_vjp(q, qd, qdd, g, p) -> [lambda, -vjp]``, lambda = M(q)^-1 g and
   vjp = lambda^T d ID(q, qd, qdd, p)/d(q, qd, p), from ``mass_matrix``, ``inverse_dynamics_vjp`` and an
   L D L^T solve (:func:`jaxskid.runtime._ldl.ldl_solve`, the same factorisation);
-* ``jaxskid_rk4_vjp``, the backward pass of a Runge-Kutta step built on it (:mod:`._ffi_rk4`).
+* ``jaxskid_rk4_vjp``, the backward pass of a Runge-Kutta step built on it (:mod:`._ffi_rk4`);
+* ``jaxskid_kkt_vjp``, the backward step of constrained forward dynamics, where the library has the
+  constraint quantities' pullbacks (:mod:`._ffi_kkt`).
 
 The handlers' C is in the templates of ``jaxskid/lowering/c/`` (:mod:`._templates`); the kernels over
 vectors of states come printed from the program representation, as statements
@@ -28,8 +30,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import NamedTuple
 
-from .._generated import GPU_ONLY, NativeSource, Statement, VectorKernel
+from .._generated import GPU_ONLY, KKT_QUANTITIES, NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
+from ._ffi_kkt import KKT_BACKWARD
 from ._ffi_rk4 import RK4_BACKWARD
 from ._templates import fill, template
 
@@ -224,7 +227,7 @@ def glue_source(native: NativeSource) -> tuple[str, bool]:
 def glue_parts(native: NativeSource) -> tuple[list[str | Piece], bool]:
     """The C of a library's handlers (it includes the generated ``<stem>.c``), as text and the
     :class:`Piece` objects of long kernels, and whether the backward kernel computes in vectors: the
-    backward step when ``native.backward``, and a handler ``jaxskid_<name>`` per entry of ``native.kernels``
+    backward step when ``native.backward`` (with the constrained one when ``native.kkt``), and a handler ``jaxskid_<name>`` per entry of ``native.kernels``
     whose C has a vector form (the others are left out; the JAX function serves them)."""
     stem = native.stem
     parts: list[str | Piece] = [_PRELUDE, POOL]
@@ -233,6 +236,9 @@ def glue_parts(native: NativeSource) -> tuple[list[str | Piece], bool]:
         lanes = lane_functions(native, ("mass_matrix", "inverse_dynamics_vjp"))
         before, _, after = _BACKWARD.partition("@LANE_FUNCTIONS@")
         parts += [before, *(lanes or ()), after, RK4_BACKWARD]
+        kkt = lane_functions(native, KKT_QUANTITIES[2:]) if lanes and native.kkt else None
+        if kkt:
+            parts += ["\n", *kkt, KKT_BACKWARD]
     quantities: list[str | Piece] = []
     for name, sizes, cores, n_out, out_rank in native.kernels:
         kernel = native.vectors.get(name)

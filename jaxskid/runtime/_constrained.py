@@ -40,6 +40,7 @@ import jax.numpy as jnp
 
 from .._errors import RequestError
 from ._batching import batch_shape, float_arrays, vmapped
+from ._ffi import native_call
 from ._forward import _bias
 from ._jit import jit
 from ._ldl import assemble, materialize
@@ -232,7 +233,7 @@ def _joined(dyn, stabilization: Baumgarte | None, regularization: float) -> Call
         gq, gqd, gp = pull((-y1, -y2))
         return gq, gqd, y1, gp, jnp.zeros_like(qdd), jnp.zeros_like(lam)
 
-    rule = Rule(tangent, pullback, 6, (nv + rows,))
+    rule = Rule(tangent, _native_pullback(dyn, pullback, stabilization, eps), 6, (nv + rows,))
 
     @jax.custom_jvp
     def solve(q, qd, tau, p):
@@ -246,6 +247,29 @@ def _joined(dyn, stabilization: Baumgarte | None, regularization: float) -> Call
                                  rule=rule, stack=())
 
     return solve
+
+
+def _native_pullback(dyn, pullback: Callable, stabilization: Baumgarte | None, eps: float) -> Callable:
+    """``pullback`` of :func:`_joined` computed by the native handler ``kkt_vjp`` on CPU where the robot's library
+    has it (:mod:`jaxskid.lowering._ffi_kkt`: the same solve and pullback in one call), by ``pullback`` itself
+    elsewhere, for other dtypes and for its own derivatives."""
+    nq, n_out = dyn.argument_shape("q")[0], dyn.argument_shape("q")[0] + 2 * dyn.nv + len(dyn.parameters)
+    alpha, beta = (stabilization.alpha, stabilization.beta) if stabilization is not None else (0.0, 0.0)
+
+    def flat(q, qd, qdd, lam, w, consts, p):
+        return jnp.concatenate(pullback(q, qd, None, p, qdd, lam, w)[:4])
+
+    def native(q, qd, tau, p, qdd, lam, w):
+        target = dyn.native_target("kkt_vjp")  # built (or waited for) when the gradient is traced
+        if target is None:
+            return pullback(q, qd, tau, p, qdd, lam, w)
+        consts = jnp.asarray([alpha, beta, eps], qd.dtype)
+        out = native_call(target, (n_out,), flat)(q, qd, qdd, lam, w, consts, p)
+        n = dyn.nv
+        return (out[:nq], out[nq:nq + n], out[nq + n:nq + 2 * n], out[nq + 2 * n:], jnp.zeros_like(qdd),
+                jnp.zeros_like(lam))
+
+    return native
 
 
 def constrained_accelerations(dyn, batched: bool = True, stabilization: Baumgarte | None = None,

@@ -37,6 +37,9 @@ from ._pullback import with_pullback
 from ._quantity import Quantity
 
 
+BACKWARD_KERNELS = ("fd_vjp", "rk4_vjp", "rk4fb_vjp", "kkt_vjp")
+"""The runtime's own native kernels, besides the quantities' (:meth:`Dynamics.native_target`)."""
+
 _ONCE = 32
 """Vectors up to this length are computed once by :meth:`Dynamics.raw`: ``x @ I`` costs ``len(x)``
 multiply-adds per entry, which stays small beside the program that computes the entry."""
@@ -149,6 +152,8 @@ class Dynamics(QuantitySet):
             self._native_build.update({k: lib for k in lib.sources.quantities if self._cuda or k not in GPU_ONLY})
             if lib.sources.backward:
                 self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
+            if lib.sources.kkt and not self._cuda:  # constrained dynamics' backward step: on CPU only
+                self._native_build["kkt_vjp"] = lib
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
         # the quantity functions, as attributes (the methods of the same name, forward_dynamics, stay)
         self._quantities: dict[str, Quantity] = {
@@ -252,7 +257,8 @@ class Dynamics(QuantitySet):
         """For the runtime's own kernels (:meth:`report` says how each quantity runs): the registered XLA FFI
         target of a native kernel (:mod:`jaxskid.runtime._ffi`): ``"fd_vjp"``, the
         backward step of forward dynamics, ``"rk4_vjp"``, the backward pass of a Runge-Kutta step built on it
-        (:mod:`jaxskid.runtime._rk4`), or the name of a quantity with a native kernel (the matrix-valued
+        (:mod:`jaxskid.runtime._rk4`), ``"kkt_vjp"``, the backward step of constrained forward dynamics
+        (:mod:`jaxskid.runtime._constrained`), or the name of a quantity with a native kernel (the matrix-valued
         ones and forward dynamics). Its library is built on first use; None where there is none (not
         lowered, a quantity without a vector form in C, turned off with ``JAXSKID_NATIVE=0``, or no C
         compiler)."""
@@ -290,9 +296,9 @@ class Dynamics(QuantitySet):
         XLA FFI handler, :mod:`jaxskid.runtime._ffi`), or ``"JAX form"`` with the reason (a vector quantity,
         which XLA fuses with its caller; native kernels off, or their library unavailable; no vector form in
         C). Builds the native libraries that are not built yet. Forward dynamics and the rollouts' backward
-        steps (``fd_vjp``, ``rk4_vjp``, ``rk4fb_vjp``) are listed where they have a kernel."""
+        steps (:data:`BACKWARD_KERNELS`) are listed where they have a kernel."""
         out = {}
-        for name in (*self.quantities, *(k for k in ("fd_vjp", "rk4_vjp", "rk4fb_vjp") if k in self._native_build)):
+        for name in (*self.quantities, *(k for k in BACKWARD_KERNELS if k in self._native_build)):
             out[name] = self._form(name)
         return out
 
