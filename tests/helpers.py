@@ -145,24 +145,38 @@ def load_example(name: str):
 def native_kkt_errors(dyn, q, qd, tau, stabilization=None, regularization: float = 0.0) -> tuple[float, float]:
     """The reverse-mode gradient of a weighted sum of constrained forward dynamics' (qdd, lambda) with respect to
     (q, qd, tau, p), computed with the native backward step (``kkt_vjp``, which must be in the compiled program)
-    against the same rule traced in JAX and against forward mode (``jax.jacfwd``, the tangent rule): their
-    largest relative errors."""
+    against the same rule traced in JAX, and its projections on two random directions against forward mode
+    (``jax.jvp``, the tangent rule): their largest relative errors."""
+    from jaxskid.runtime._constrained import constrained
+
     p = dyn.param_vector()
     rows = dyn.signature("constraint_jacobian")[1][0]
-    w = np.random.default_rng(3).normal(size=dyn.nv + rows)
+    rng = np.random.default_rng(3)
+    w = rng.normal(size=dyn.nv + rows)
 
-    def loss(*x):
-        qdd, lam = dyn.constrained_forward_dynamics(*x, stabilization=stabilization, regularization=regularization)
-        return jax.numpy.concatenate([qdd, lam]) @ w
+    def gradient(target):
+        """The gradient through a freshly traced rule, with ``dyn.native_target`` as ``target``."""
+        solve = constrained(dyn, stabilization, regularization)
 
-    grad = jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3)))
-    assert "jaxskid_kkt_vjp" in grad.lower(q, qd, tau, p).as_text()
-    native = grad(q, qd, tau, p)
-    forward = jax.jacfwd(loss, argnums=(0, 1, 2, 3))(q, qd, tau, p)
-    built = dyn.native_target
-    try:
-        dyn.native_target = lambda name="fd_vjp": None if name == "kkt_vjp" else built(name)
-        traced = jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3)))(q, qd, tau, p)
-    finally:
-        del dyn.native_target
-    return (max(rel_err(a, b) for a, b in zip(native, traced)), max(rel_err(a, b) for a, b in zip(native, forward)))
+        def loss(*x):
+            return jax.numpy.concatenate(solve(*x)) @ w
+
+        built = dyn.native_target
+        try:
+            dyn.native_target = target(built)
+            grad = jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3)))
+            return loss, grad(*x), grad.lower(*x).as_text()
+        finally:
+            del dyn.native_target
+
+    x = (q, qd, tau, p)
+    loss, native, text = gradient(lambda built: built)
+    assert "jaxskid_kkt_vjp" in text
+    _, traced, text = gradient(lambda built: lambda name="fd_vjp": None if name == "kkt_vjp" else built(name))
+    assert "jaxskid_kkt_vjp" not in text
+    forward = []
+    for _ in range(2):
+        v = [rng.normal(size=np.shape(a)) for a in x]
+        along = jax.jvp(loss, x, tuple(v))[1]
+        forward.append(rel_err(sum(np.dot(np.asarray(g), d) for g, d in zip(native, v)), along))
+    return max(rel_err(a, b) for a, b in zip(native, traced)), max(forward)

@@ -264,6 +264,23 @@ def test_native_backward_step(four_bar):
         assert traced < 1e-12 and forward < 1e-12
 
 
+def test_native_backward_step_with_a_floating_base():
+    """The same with a floating base (nq = nv + 1: the base's quaternion): the 3-DOF arm on a free-flying base
+    with its gripper held by a point contact, Baumgarte's terms in play."""
+    d = yaml.safe_load((ROBOTS_DIR / "arm_3dof.yaml").read_text())
+    d["floating_base"] = True
+    d["base_inertia"] = {"mass": 2.0, "com": [0, 0, 0], "inertia": {"Ixx": 0.02, "Iyy": 0.03, "Izz": 0.04}}
+    robot = jaxskid.parse_description(d, source="floating_arm.yaml")
+    dyn = jaxskid.lower(robot.with_constraints([jaxskid.PointContact("gripper")]), CONSTRAINED)
+    assert dyn.report()["kkt_vjp"] == "native kernel"
+    rng = np.random.default_rng(4)
+    quat = rng.normal(size=4)
+    q = np.concatenate([rng.normal(0, 0.1, 3), quat / np.linalg.norm(quat), rng.normal(0, 0.5, 3)])
+    qd, tau = rng.normal(0, 1.0, robot.nv), np.concatenate([np.zeros(6), rng.normal(0, 2.0, 3)])
+    traced, forward = native_kkt_errors(dyn, q, qd, tau, jaxskid.Baumgarte())
+    assert traced < 1e-12 and forward < 1e-12
+
+
 def test_jit_and_vmap_agree_with_single_calls(four_bar):
     _, dyn = four_bar
     rng = np.random.default_rng(6)

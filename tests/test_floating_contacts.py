@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pinocchio as pin
 import pytest
-from helpers import ROBOTS_DIR, URDFS, native_kkt_errors
+from helpers import ROBOTS_DIR, URDFS
 
 import jaxskid
 
@@ -79,19 +79,6 @@ def test_constrained_dynamics_matches_a_kkt_solve_on_pinocchio(standing):
         qdd_ref, lam_ref = kkt(model, q, to_pin(v), to_pin(tau))
         assert np.abs(to_pin(np.asarray(qdd)) - qdd_ref).max() <= 1e-9 * max(1, np.abs(qdd_ref).max())
         assert np.abs(np.asarray(lam) - lam_ref).max() <= 1e-9 * max(1, np.abs(lam_ref).max())
-
-
-def test_native_backward_step_with_a_floating_base(standing):
-    """The constrained backward step in one native call (nq = nv + 1: the base's quaternion) against the rule
-    traced in JAX and forward mode, with Baumgarte's terms."""
-    robot, dyn, _ = standing
-    assert dyn.report()["kkt_vjp"] == "native kernel"
-    rng = np.random.default_rng(4)
-    q = np.concatenate([rng.normal(0, 0.1, 3), pin.Quaternion(pin.exp3(rng.normal(0, 0.3, 3))).coeffs(),
-                        STAND + rng.normal(0, 0.2, 12)])
-    v, tau = rng.normal(0, 1.0, robot.nv), np.concatenate([np.zeros(6), rng.normal(0, 2.0, 12)])
-    traced, forward = native_kkt_errors(dyn, q, v, tau, jaxskid.Baumgarte())
-    assert traced < 1e-11 and forward < 1e-11
 
 
 @pytest.mark.slow
