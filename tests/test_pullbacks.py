@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import jaxskid
-from helpers import ERD, FINGERS, PANDA, ROBOTS_DIR, URDFS, load
+from helpers import ERD, FINGERS, PANDA, ROBOTS_DIR, URDFS, load, rel_err
 
 QUANTITIES = ["mass_matrix", "coriolis_matrix", "coriolis_torques", "gravity_torques", "inverse_dynamics"]
 CONTACT = ["ee_pose", "ee_hybrid_twist", "external_torques"]
@@ -120,6 +120,27 @@ def test_reverse_mode_runs_the_pullback(panda):
     ours = _primitives(jax.make_jaxpr(jax.grad(lambda p: jnp.sum(panda.mass_matrix(q, p) ** 2)))(p).jaxpr)
     plain = _primitives(jax.make_jaxpr(jax.grad(lambda p: jnp.sum(unwrapped(q, p) ** 2)))(p).jaxpr)
     assert 10 * len(ours) < len(plain)
+
+
+def test_state_jacobians_leave_the_parameters_out(panda):
+    """Where the parameters are not differentiated (a controller's Jacobian with respect to the state), reverse
+    mode calls the pullback's native kernel without the parameters' part (``<name>_vjp_state``); with them, the
+    whole one. Both against forward mode, for tau (its qdd cotangent through M), C and Q_grav."""
+    q, qd, qdd = _states(panda, None)
+    p = panda.param_vector()
+    cases = {"inverse_dynamics": lambda x, p: panda.raw("inverse_dynamics")(x[:7], x[7:14], x[14:], p),
+             "coriolis_matrix": lambda x, p: panda.raw("coriolis_matrix")(x[:7], x[7:14], p),
+             "gravity_torques": lambda x, p: panda.raw("gravity_torques")(x[:7], p)}
+    x = jnp.concatenate([q, qd, qdd])
+    for name, f in cases.items():
+        state = jax.jit(jax.jacrev(f))
+        assert f"jaxskid_{name}_vjp_state" in state.lower(x, p).as_text()
+        assert rel_err(state(x, p), jax.jacfwd(f)(x, p)) < 1e-12
+        both = jax.jit(jax.jacrev(f, argnums=(0, 1)))
+        text = both.lower(x, p).as_text()
+        assert f"jaxskid_{name}_vjp_" in text and f"jaxskid_{name}_vjp_state" not in text
+        for ours, theirs in zip(both(x, p), jax.jacfwd(f, argnums=(0, 1))(x, p)):
+            assert rel_err(ours, theirs) < 1e-12
 
 
 @pytest.mark.parametrize("robot", ["solo12", "quadruped_contact"])

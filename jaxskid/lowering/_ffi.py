@@ -217,6 +217,32 @@ entries. The G1's regressor (84 % zeros) runs and builds faster that way; its Co
 ran slower that way than with one sequential copy of every entry (``benchmarks/scaling.py --robots g1``)."""
 
 
+def _state_part(kernel: VectorKernel, n_out: int) -> VectorKernel:
+    """``kernel`` computing only its first ``n_out`` outputs, with the statements they read."""
+    live: set[str] = set()
+    kept: list[Statement] = []
+    for s in reversed(kernel.statements):
+        if s.kind == "unused" or (s.kind == "output" and int(s.name) < n_out) or s.name in live and s.kind != "output":
+            kept.append(s)
+            live.update(s.reads)
+    read = {s.value.split("[")[0] for s in kept if s.kind == "input"}
+    kept += [Statement("unused", a, "", ()) for a in kernel.args if a not in read and
+             not any(s.kind == "unused" and s.name == a for s in kept)]
+    return VectorKernel(kernel.args, tuple(reversed(kept)), tuple(z for z in kernel.zeros if z < n_out))
+
+
+def _with_state_parts(native: NativeSource):
+    """``(name, sizes, cores, n_out, out_rank, vector kernel)`` of each of the library's kernels, and after each
+    pullback (``<name>_vjp``) its kernel without the parameters' part, ``<name>_vjp_state``: reverse mode asks
+    for that one where the parameters are not differentiated (a controller's Jacobian with respect to the
+    state; :class:`jaxskid.runtime._pullback.Rule`)."""
+    for name, sizes, cores, n_out, out_rank in native.kernels:
+        kernel = native.vectors.get(name)
+        yield name, sizes, cores, n_out, out_rank, kernel
+        if name.endswith("_vjp") and kernel is not None and sizes[-1] > 0:
+            yield f"{name}_state", sizes, cores, n_out - sizes[-1], out_rank, _state_part(kernel, n_out - sizes[-1])
+
+
 def glue_source(native: NativeSource) -> tuple[str, bool]:
     """The C of a library's handlers as one translation unit (see :func:`glue_parts`) and whether the
     backward kernel computes in vectors."""
@@ -240,11 +266,11 @@ def glue_parts(native: NativeSource) -> tuple[list[str | Piece], bool]:
         if kkt:
             parts += ["\n", *kkt, KKT_BACKWARD]
     quantities: list[str | Piece] = []
-    for name, sizes, cores, n_out, out_rank in native.kernels:
-        kernel = native.vectors.get(name)
+    for name, sizes, cores, n_out, out_rank, kernel in _with_state_parts(native):
         if kernel is None or name in GPU_ONLY:
             continue
-        quantities += lane_functions(native, (name,), vec="V", drop_zeros=_scattered(kernel))
+        zeros = set(kernel.zeros) if _scattered(kernel) else set()
+        quantities += _chunked(f"{native.stem}_{name}_V", kernel, "V", zeros)
         args = ", ".join(f"x[{i}]" for i in range(len(sizes)))
         nonzero, nz, n_nz = _nonzero(kernel, name)
         quantities.append(fill(QUANTITY, NONZERO=nonzero, NZ=nz, N_NZ=n_nz, NAME=name, ARGS=args,

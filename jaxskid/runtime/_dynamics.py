@@ -137,7 +137,8 @@ class Dynamics(QuantitySet):
             if pull is not None:
                 n_args, shape = len(quantities[name]["args"]) + 1, tuple(quantities[name]["shape"])
                 rule = self._rules[name] = functools.partial(
-                    with_pullback, program=self._plain[name], pullback=pull, n_args=n_args, shape=shape)
+                    with_pullback, program=self._plain[name], pullback=pull, n_args=n_args, shape=shape,
+                    state_pullback=self._pullback(name, state=True))
                 self._raw[name] = _traced_once(rule(generated[name].function))
                 self._plain[name] = _traced_once(rule(self._plain[name]), name)
         self._jitted: dict[str, Callable] = {}
@@ -152,6 +153,8 @@ class Dynamics(QuantitySet):
             self._native_build.update({k: lib for k in lib.sources.quantities if self._cuda or k not in GPU_ONLY})
             if lib.sources.backward:
                 self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
+            if not self._cuda:  # a pullback's kernel without the parameters' part (made by the glue, CPU only)
+                self._native_build.update({f"{k}_state": lib for k in lib.sources.quantities if k.endswith("_vjp")})
             if lib.sources.kkt and not self._cuda:  # constrained dynamics' backward step: on CPU only
                 self._native_build["kkt_vjp"] = lib
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
@@ -177,44 +180,54 @@ class Dynamics(QuantitySet):
             if m["shape"]:
                 self._entries.setdefault(name, _traced_once(fn.entries(), name))
 
-    def _pullback(self, name: str) -> Callable | None:
+    def _pullback(self, name: str, state: bool = False) -> Callable | None:
         """``pull(*state, p, w)``: the cotangents of ``name``'s arguments for a cotangent ``w`` of its result,
         from its lowered pullback (``<name>_vjp``; for inverse dynamics ``inverse_dynamics_vjp`` and the mass
-        matrix, ``d(w^T tau)/dqdd = M w``), native where it has a kernel; None where none was lowered."""
+        matrix, ``d(w^T tau)/dqdd = M w``), native where it has a kernel; None where none was lowered.
+        ``state``: the same with a zero cotangent for ``p``, for a derivative that does not ask for it (a
+        controller's Jacobian with respect to the state), whose native kernel leaves the parameters' part out."""
         have = self._meta
         if name == "inverse_dynamics" and {"inverse_dynamics_vjp", "mass_matrix"} <= set(have):
-            vjp, mass = self._pullback_kernel("inverse_dynamics_vjp"), self._pullback_kernel("mass_matrix")
+            vjp, mass = self._pullback_kernel("inverse_dynamics_vjp", state), self._pullback_kernel("mass_matrix")
             nq, nv = self.nq, self.nv
 
             def pull_tau(q, qd, qdd, p, w):
                 g = vjp(q, qd, qdd, w, p)
-                return g[:nq], g[nq:nq + nv], mass(q, p) @ w, g[nq + nv:]
+                return g[:nq], g[nq:nq + nv], mass(q, p) @ w, jnp.zeros_like(p) if state else g[nq + nv:]
 
             return pull_tau
         if f"{name}_vjp" not in have:
             return None
-        vjp = self._pullback_kernel(f"{name}_vjp")
+        vjp = self._pullback_kernel(f"{name}_vjp", state)
         shapes = [self.argument_shape(a) for a in have[name]["args"]]
         sizes = [int(np.prod(s)) for s in shapes]
         ends = np.cumsum(sizes).tolist()
 
         def pull(*args):
-            *state, p, w = args
-            g = vjp(*state, w, p)
-            return (*(g[e - k:e].reshape(s) for k, e, s in zip(sizes, ends, shapes)), g[ends[-1]:])
+            p, w = args[-2:]
+            g = vjp(*args[:-2], w, p)
+            return (*(g[e - k:e].reshape(s) for k, e, s in zip(sizes, ends, shapes)),
+                    jnp.zeros_like(p) if state else g[ends[-1]:])
 
         return pull
 
-    def _pullback_kernel(self, name: str) -> Callable:
+    def _pullback_kernel(self, name: str, state: bool = False) -> Callable:
         """``name``'s function of one state, its native kernel on CPU where it has one (looked up when first
-        called: when a derivative is first traced)."""
+        called: when a derivative is first traced). ``state``: a pullback's entries without the parameters'
+        (its native kernel ``<name>_state``, where the library has it)."""
         found: list = []
 
         def call(*args):
             if not found:
-                native = self.native_target(name) if self._native_wanted else None
-                raw = self._raw[name]
-                found.append(raw if native is None else native_quantity(native, tuple(self._meta[name]["shape"]), raw))
+                shape, raw = tuple(self._meta[name]["shape"]), self._raw[name]
+                if state:
+                    shape, full = (shape[0] - len(self.parameters),), raw
+
+                    def raw(*a):
+                        return full(*a)[:shape[0]]
+
+                native = self.native_target(f"{name}_state" if state else name) if self._native_wanted else None
+                found.append(raw if native is None else native_quantity(native, shape, raw))
             return found[0](*args)
 
         return call

@@ -30,11 +30,14 @@ from jax.interpreters import ad, batching, mlir
 class Rule:
     """The derivatives of one quantity: ``tangent(*primals, *tangents)``, its directional derivative, and
     ``pullback(*primals, w)``, the cotangents of the primals (one array each, their shapes) for a cotangent
-    ``w`` of the result, each for one state; ``shape`` is the result's. Compared and hashed by identity, as
-    the primitive's parameters are."""
+    ``w`` of the result, each for one state; ``shape`` is the result's; ``state_pullback``, where given, the same
+    with a zero cotangent for the last primal (the parameters), used when nothing asks for that one. Compared
+    and hashed by identity, as the primitive's parameters are."""
 
-    def __init__(self, tangent: Callable, pullback: Callable, n_primals: int, shape: tuple[int, ...]):
+    def __init__(self, tangent: Callable, pullback: Callable, n_primals: int, shape: tuple[int, ...],
+                 state_pullback: Callable | None = None):
         self.tangent, self.pullback, self.n_primals, self.shape = tangent, pullback, n_primals, tuple(shape)
+        self.state_pullback = state_pullback
 
 
 tangent_p = Primitive("jaxskid_tangent")
@@ -90,6 +93,8 @@ def _transpose(ct, *args, rule: Rule, stack: tuple):
     if any(ad.is_undefined_primal(x) for x in primals):
         raise NotImplementedError("jaxskid: a quantity's tangent is linear in its tangents, not its primals")
     pull = rule.pullback
+    if rule.state_pullback is not None and not ad.is_undefined_primal(tangents[-1]):
+        pull = rule.state_pullback  # the parameters' cotangent is not asked for: a shorter program
     for axes in stack:
         pull = _pull_level(pull, axes, n)
     cts = pull(*primals, ct)
@@ -106,7 +111,7 @@ mlir.register_lowering(tangent_p, mlir.lower_fun(_impl, multiple_results=False))
 
 
 def with_pullback(primal: Callable, *, program: Callable, pullback: Callable, n_args: int,
-                  shape: tuple[int, ...]) -> Callable:
+                  shape: tuple[int, ...], state_pullback: Callable | None = None) -> Callable:
     """``primal`` (``f(*state, p)`` of one state: ``n_args`` arrays, result ``shape``) differentiated in forward
     mode through ``program`` (the same function as JAX code) and in reverse mode by ``pullback(*state, p, w)``,
     which returns the cotangent of each argument (see the module docstring)."""
@@ -114,7 +119,7 @@ def with_pullback(primal: Callable, *, program: Callable, pullback: Callable, n_
     def tangent(*args):
         return jax.jvp(program, args[:n_args], args[n_args:])[1]
 
-    rule = Rule(tangent, pullback, n_args, shape)
+    rule = Rule(tangent, pullback, n_args, shape, state_pullback)
 
     @jax.custom_jvp
     def f(*args):
