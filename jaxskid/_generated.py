@@ -100,6 +100,11 @@ CPU's C library leaves them out); on a GPU, XLA took far longer to compile their
 kernels."""
 
 
+WHOLE_PULLBACKS = frozenset({"mass_matrix_vjp", "coriolis_matrix_vjp"})
+"""Pullbacks whose native library has no kernel of their state part (``<name>_state``, without the parameters'
+cotangent; :mod:`jaxskid.lowering._ffi`): the matrices', long programs (the G1's Coriolis matrix's the longest a
+library builds) whose Jacobian with respect to the state alone nothing in jaxskid asks for."""
+
 KKT_QUANTITIES = ("mass_matrix", "inverse_dynamics_vjp", "constraint_jacobian", "constraint_jacobian_vjp",
                   "constraint_drift_vjp", "constraint_residual_vjp")
 """The quantities whose C the native backward step of constrained forward dynamics is built from

@@ -125,11 +125,11 @@ def test_reverse_mode_runs_the_pullback(panda):
 def test_state_jacobians_leave_the_parameters_out(panda):
     """Where the parameters are not differentiated (a controller's Jacobian with respect to the state), reverse
     mode calls the pullback's native kernel without the parameters' part (``<name>_vjp_state``); with them, the
-    whole one. Both against forward mode, for tau (its qdd cotangent through M), C and Q_grav."""
+    whole one. Both against forward mode, for tau (its qdd cotangent through M), C qd and Q_grav."""
     q, qd, qdd = _states(panda, None)
     p = panda.param_vector()
     cases = {"inverse_dynamics": lambda x, p: panda.raw("inverse_dynamics")(x[:7], x[7:14], x[14:], p),
-             "coriolis_matrix": lambda x, p: panda.raw("coriolis_matrix")(x[:7], x[7:14], p),
+             "coriolis_torques": lambda x, p: panda.raw("coriolis_torques")(x[:7], x[7:14], p),
              "gravity_torques": lambda x, p: panda.raw("gravity_torques")(x[:7], p)}
     x = jnp.concatenate([q, qd, qdd])
     for name, f in cases.items():

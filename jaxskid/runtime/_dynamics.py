@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import unknown_names, RequestError, ShapeError
-from .._generated import GPU_ONLY, GeneratedModule, NativeBuild
+from .._generated import GPU_ONLY, WHOLE_PULLBACKS, GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
 from ._cuda import CudaKernel, cuda_kernel, enabled as cuda_enabled
 from ._cuda_rollout import rollout_kernels
@@ -154,7 +154,8 @@ class Dynamics(QuantitySet):
             if lib.sources.backward:
                 self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
             if not self._cuda:  # a pullback's kernel without the parameters' part (made by the glue, CPU only)
-                self._native_build.update({f"{k}_state": lib for k in lib.sources.quantities if k.endswith("_vjp")})
+                self._native_build.update({f"{k}_state": lib for k in lib.sources.quantities if k.endswith("_vjp")
+                                           and k not in WHOLE_PULLBACKS})
             if lib.sources.kkt and not self._cuda:  # constrained dynamics' backward step: on CPU only
                 self._native_build["kkt_vjp"] = lib
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
@@ -213,20 +214,21 @@ class Dynamics(QuantitySet):
 
     def _pullback_kernel(self, name: str, state: bool = False) -> Callable:
         """``name``'s function of one state, its native kernel on CPU where it has one (looked up when first
-        called: when a derivative is first traced). ``state``: a pullback's entries without the parameters'
-        (its native kernel ``<name>_state``, where the library has it)."""
+        called: when a derivative is first traced). ``state``: a pullback whose parameters' entries are not read
+        (its native kernel ``<name>_state`` where the library has one, else the whole kernel)."""
         found: list = []
 
         def call(*args):
             if not found:
                 shape, raw = tuple(self._meta[name]["shape"]), self._raw[name]
-                if state:
-                    shape, full = (shape[0] - len(self.parameters),), raw
+                native = self.native_target(f"{name}_state") if state and self._native_wanted else None
+                if native is not None or (state and not self._native_wanted):
+                    shape, full = (shape[0] - len(self.parameters),), raw  # the JAX form: XLA drops the rest
 
                     def raw(*a):
                         return full(*a)[:shape[0]]
-
-                native = self.native_target(f"{name}_state" if state else name) if self._native_wanted else None
+                elif self._native_wanted:  # the whole kernel (the state's entries come first)
+                    native = self.native_target(name)
                 found.append(raw if native is None else native_quantity(native, shape, raw))
             return found[0](*args)
 
