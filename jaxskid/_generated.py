@@ -88,6 +88,13 @@ class NativeSource:
         return tuple(k.name for k in self.kernels)
 
     @property
+    def state_parts(self) -> tuple[str, ...]:
+        """The pullbacks that also get a kernel of their state part, ``<name>_state`` (without the parameters'
+        cotangent): every pullback kernel of a robot with parameters but :data:`WHOLE_PULLBACKS`."""
+        return tuple(k.name for k in self.kernels
+                     if k.name.endswith("_vjp") and k.name not in WHOLE_PULLBACKS and k.sizes[-1] > 0)
+
+    @property
     def kkt(self) -> bool:
         """Whether it has the backward step of constrained forward dynamics: the backward step of forward
         dynamics and the vector forms of :data:`KKT_QUANTITIES`."""

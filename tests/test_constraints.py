@@ -19,7 +19,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 import jaxskid
-from helpers import FINGERS, PANDA, ROBOTS_DIR, load, native_kkt_errors, pinocchio_urdf_model, rel_err
+from jaxskid.runtime._constrained import constrained
+from helpers import FINGERS, PANDA, ROBOTS_DIR, load, pinocchio_urdf_model, rel_err
 from pinref import jac_to_omega_v, to_pinocchio
 
 FOUR_BAR = ROBOTS_DIR / "four_bar.yaml"
@@ -253,6 +254,44 @@ def test_gradients_match_central_differences(four_bar):
     assert rel_err(hessian, fd) < 1e-6
 
 
+def _native_kkt_errors(dyn, q, qd, tau, stabilization=None, regularization: float = 0.0) -> tuple[float, float]:
+    """The reverse-mode gradient of a weighted sum of constrained forward dynamics' (qdd, lambda) with respect to
+    (q, qd, tau, p), computed with the native backward step (``kkt_vjp``, which must be in the compiled program)
+    against the same rule traced in JAX, and its projections on two random directions against forward mode
+    (``jax.jvp``, the tangent rule): their largest relative errors."""
+    p = dyn.param_vector()
+    rows = dyn.signature("constraint_jacobian")[1][0]
+    rng = np.random.default_rng(3)
+    w = rng.normal(size=dyn.nv + rows)
+
+    def gradient(target):
+        """The gradient through a freshly traced rule, with ``dyn.native_target`` as ``target``."""
+        solve = constrained(dyn, stabilization, regularization)
+
+        def loss(*x):
+            return jax.numpy.concatenate(solve(*x)) @ w
+
+        built = dyn.native_target
+        try:
+            dyn.native_target = target(built)
+            grad = jax.jit(jax.grad(loss, argnums=(0, 1, 2, 3)))
+            return loss, grad(*x), grad.lower(*x).as_text()
+        finally:
+            del dyn.native_target
+
+    x = (q, qd, tau, p)
+    loss, native, text = gradient(lambda built: built)
+    assert "jaxskid_kkt_vjp" in text
+    _, traced, text = gradient(lambda built: lambda name="fd_vjp": None if name == "kkt_vjp" else built(name))
+    assert "jaxskid_kkt_vjp" not in text
+    forward = []
+    for _ in range(2):
+        v = [rng.normal(size=np.shape(a)) for a in x]
+        along = jax.jvp(loss, x, tuple(v))[1]
+        forward.append(rel_err(sum(np.dot(np.asarray(g), d) for g, d in zip(native, v)), along))
+    return max(rel_err(a, b) for a, b in zip(native, traced)), max(forward)
+
+
 def test_native_backward_step(four_bar):
     """The constrained backward step in one native call (jaxskid_kkt_vjp) gives the gradients of the rule traced
     in JAX and of forward mode, without stabilisation, with Baumgarte's terms, and with a regularisation."""
@@ -260,7 +299,7 @@ def test_native_backward_step(four_bar):
     assert dyn.report()["kkt_vjp"] == "native kernel"
     q, qd, tau = np.array([0.4, -0.3, 0.5]), np.array([0.7, -0.2, 0.4]), np.array([0.3, -0.1, 0.2])
     for stab, eps in ((None, 0.0), (jaxskid.Baumgarte(3.0, 4.0), 0.0), (jaxskid.Baumgarte(), 1e-3)):
-        traced, forward = native_kkt_errors(dyn, q, qd, tau, stab, eps)
+        traced, forward = _native_kkt_errors(dyn, q, qd, tau, stab, eps)
         assert traced < 1e-12 and forward < 1e-12
 
 
@@ -277,7 +316,7 @@ def test_native_backward_step_with_a_floating_base():
     quat = rng.normal(size=4)
     q = np.concatenate([rng.normal(0, 0.1, 3), quat / np.linalg.norm(quat), rng.normal(0, 0.5, 3)])
     qd, tau = rng.normal(0, 1.0, robot.nv), np.concatenate([np.zeros(6), rng.normal(0, 2.0, 3)])
-    traced, forward = native_kkt_errors(dyn, q, qd, tau, jaxskid.Baumgarte())
+    traced, forward = _native_kkt_errors(dyn, q, qd, tau, jaxskid.Baumgarte())
     assert traced < 1e-12 and forward < 1e-12
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import NamedTuple
 
-from .._generated import GPU_ONLY, KKT_QUANTITIES, WHOLE_PULLBACKS, NativeSource, Statement, VectorKernel
+from .._generated import GPU_ONLY, KKT_QUANTITIES, NativeSource, Statement, VectorKernel
 from ._ffi_batch import BACKWARD_CHUNK, GENERIC, POOL, QUANTITY
 from ._ffi_kkt import KKT_BACKWARD
 from ._ffi_rk4 import RK4_BACKWARD
@@ -239,7 +239,7 @@ def _with_state_parts(native: NativeSource):
     for name, sizes, cores, n_out, out_rank in native.kernels:
         kernel = native.vectors.get(name)
         yield name, sizes, cores, n_out, out_rank, kernel
-        if name.endswith("_vjp") and name not in WHOLE_PULLBACKS and kernel is not None and sizes[-1] > 0:
+        if name in native.state_parts and kernel is not None:
             yield f"{name}_state", sizes, cores, n_out - sizes[-1], out_rank, _state_part(kernel, n_out - sizes[-1])
 
 

@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import unknown_names, RequestError, ShapeError
-from .._generated import GPU_ONLY, WHOLE_PULLBACKS, GeneratedModule, NativeBuild
+from .._generated import GPU_ONLY, GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
 from ._cuda import CudaKernel, cuda_kernel, enabled as cuda_enabled
 from ._cuda_rollout import rollout_kernels
@@ -154,8 +154,7 @@ class Dynamics(QuantitySet):
             if lib.sources.backward:
                 self._native_build.update(fd_vjp=lib, rk4_vjp=lib, rk4fb_vjp=lib)
             if not self._cuda:  # a pullback's kernel without the parameters' part (made by the glue, CPU only)
-                self._native_build.update({f"{k}_state": lib for k in lib.sources.quantities if k.endswith("_vjp")
-                                           and k not in WHOLE_PULLBACKS})
+                self._native_build.update({f"{k}_state": lib for k in lib.sources.state_parts})
             if lib.sources.kkt and not self._cuda:  # constrained dynamics' backward step: on CPU only
                 self._native_build["kkt_vjp"] = lib
         self._native_path: dict[str, str | None] = {}  # by handler: its library's path, None if unavailable
