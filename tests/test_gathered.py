@@ -147,15 +147,20 @@ def test_float32_and_complex_inputs(panda):
     np.testing.assert_allclose(m.real, dyn.mass_matrix(q), rtol=1e-14, atol=1e-14)
 
 
-def test_several_reduces(monkeypatch):
+@pytest.mark.parametrize("staged", [1000, 1])
+def test_several_reduces(monkeypatch, staged):
     """Outputs split over reduces of a few entries each (CHUNK, for the largest results) give the same result (to
-    rounding: XLA contracts multiply-adds differently in other kernels)."""
+    rounding: XLA contracts multiply-adds differently in other kernels), with the table stacked at once and built
+    chunk by chunk (STAGED)."""
     dyn, _ = _lowered(PANDA, FINGERS)
     q, qd, qdd = _states(dyn.n_dof, (4,), seed=7)
     whole = dyn.regressor(q, qd, qdd)
     monkeypatch.setattr(_gathered, "CHUNK", 7)
+    monkeypatch.setattr(_gathered, "STAGED", staged)
     chunked, _ = _lowered(PANDA, FINGERS)  # a new Dynamics traces its functions again
     np.testing.assert_allclose(chunked.regressor(q, qd, qdd), whole, rtol=1e-13, atol=1e-13 * float(jnp.abs(whole).max()))
+    one = chunked.regressor(q[0], qd[0], qdd[0])
+    np.testing.assert_allclose(one, whole[0], rtol=1e-13, atol=1e-13 * float(jnp.abs(whole).max()))
 
 
 def test_padded_batch():
