@@ -51,10 +51,11 @@ LANES = 2
 STAGED = 8
 """Chunks above which the table is built chunk by chunk (module docstring, step 2). One stack of thousands of
 columns is a loop whose body reads every column: LLVM's loop vectorizer analyses its memory accesses pairwise,
-and XLA took longer over that loop than over the whole program. The G1 with hands' regressor (2,886 distinct
-entries, 23 chunks, batch 4,104) compiled in 16.9 s instead of 37.9 s and ran in 426 ms instead of 459 ms, the
-G1's in 6.9 s instead of 9.4 s (192 ms instead of 288 ms). The Coriolis matrix of the G1 with hands (569 entries,
-5 chunks) ran 4x slower built chunk by chunk: XLA reads a small table's columns straight from the reduces."""
+and XLA took longer over that loop than over the whole program. The barriers keep XLA's simplifier from merging
+the chunks' stacks back into one. The G1 with hands' regressor (2,886 distinct entries, 23 chunks, batch 4,104,
+one core) compiled in 17-19 s instead of 33-38 s, and ran as fast (108 and 110 us per state); the G1's (1,362
+entries) in 7.0 s instead of 9.4 s. The Coriolis matrix of the G1 with hands (569 entries, 5 chunks) ran 4x
+slower built chunk by chunk: XLA reads a small table's columns straight from the reduces."""
 
 
 def _maximum(x: tuple, y: tuple) -> tuple:
@@ -94,8 +95,8 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
         low = (jnp.asarray(-jnp.inf, dtype),) * len(part)
         outputs = jax.lax.reduce(part, low, _maximum, (0,))
         if staged:  # the chunk's columns of the table, as an array of their own (module docstring, step 2)
-            outputs = [jnp.stack(jax.lax.optimization_barrier(tuple(outputs)), axis=-1)]
-            outputs = [jax.lax.optimization_barrier(outputs[0])]
+            stacked = jnp.stack(jax.lax.optimization_barrier(tuple(outputs)), axis=-1)
+            outputs = [jax.lax.optimization_barrier(stacked)]
         columns += outputs
     zero = jnp.zeros(lanes_shape[1:], dtype)
     if staged:
