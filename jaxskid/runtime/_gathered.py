@@ -53,9 +53,9 @@ STAGED = 8
 columns is a loop whose body reads every column: LLVM's loop vectorizer analyses its memory accesses pairwise,
 and XLA took longer over that loop than over the whole program. The barriers keep XLA's simplifier from merging
 the chunks' stacks back into one. The G1 with hands' regressor (2,886 distinct entries, 23 chunks, batch 4,104,
-one core) compiled in 17-19 s instead of 33-38 s, and ran as fast (108 and 110 us per state); the G1's (1,362
-entries) in 7.0 s instead of 9.4 s. The Coriolis matrix of the G1 with hands (569 entries, 5 chunks) ran 4x
-slower built chunk by chunk: XLA reads a small table's columns straight from the reduces."""
+one core) compiled in 33-38 s stacked at once and in 17-19 s chunk by chunk, and ran as fast either way (110 and
+108 us per state); the G1's (1,362 entries) in 9.4 s and 7.0 s. The Coriolis matrix of the G1 with hands (569
+entries, 5 chunks) ran 4x slower chunk by chunk: XLA reads a small table's columns straight from the reduces."""
 
 
 def _maximum(x: tuple, y: tuple) -> tuple:
@@ -89,20 +89,16 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
     values, index = _distinct(entries, math.prod(quantity.shape))
     lanes = [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in values]
     staged = len(lanes) > STAGED * CHUNK
-    columns = []
+    columns = []  # each chunk's columns of the table (module docstring, step 2)
     for start in range(0, len(lanes), CHUNK):
         part = tuple(lanes[start:start + CHUNK])
         low = (jnp.asarray(-jnp.inf, dtype),) * len(part)
         outputs = jax.lax.reduce(part, low, _maximum, (0,))
-        if staged:  # the chunk's columns of the table, as an array of their own (module docstring, step 2)
-            stacked = jnp.stack(jax.lax.optimization_barrier(tuple(outputs)), axis=-1)
-            outputs = [jax.lax.optimization_barrier(stacked)]
-        columns += outputs
-    zero = jnp.zeros(lanes_shape[1:], dtype)
-    if staged:
-        table = jnp.concatenate([*columns, zero[..., None]], axis=-1)
-    else:
-        table = jnp.stack([*columns, zero], axis=-1)
+        if staged:
+            outputs = jax.lax.optimization_barrier(tuple(outputs))
+        stacked = jnp.stack(outputs, axis=-1)
+        columns.append(jax.lax.optimization_barrier(stacked) if staged else stacked)
+    table = jnp.concatenate([*columns, jnp.zeros((*lanes_shape[1:], 1), dtype)], axis=-1)
     if batch is None:
         return jnp.take(table, index, mode="clip").reshape(quantity.shape)
     return jnp.take(table, index, axis=1, mode="clip").reshape((batch, *quantity.shape))
