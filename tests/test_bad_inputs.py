@@ -105,7 +105,6 @@ CASES = {
     "urdf_floating_joint.urdf": ("joint[name=j2].type", "got unsupported type 'floating' (only fixed-base trees"),
     "urdf_planar_joint.urdf": ("joint[name=j2].type", "got unsupported type 'planar' (only fixed-base trees"),
     "urdf_unknown_joint_type.urdf": ("joint[name=j1].type", "expected one of revolute, continuous, prismatic, fixed, got unknown type 'ball'"),
-    "urdf_mimic_unknown_joint.urdf": ("joint[name=j2].mimic.joint", "expected the name of a joint, got 'j7'"),
     "urdf_axis_nan.urdf": ("joint[name=j1].axis", "expected finite numbers, got '0 nan 1'"),
     "urdf_origin_four_values.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '0 0 0.1 0'"),
     "urdf_xacro_expression.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '${length} 0 0'"),
@@ -120,7 +119,8 @@ LIBRARIES = ("sympy", "jax", "jaxlib", "yourdfpy", "lxml", "yaml", "numpy", "tri
 def test_the_corpus_is_complete():
     on_disk = {p.name for p in BAD.iterdir()}
     assert len(CASES) >= 40
-    assert on_disk == set(CASES) | {"urdf_mimic.urdf"}, "every file of the corpus has an expectation here"
+    warned = {"urdf_mimic.urdf", "urdf_mimic_unknown_joint.urdf"}  # loaded with a warning (test_urdf_repairs.py)
+    assert on_disk == set(CASES) | warned, "every file of the corpus has an expectation here"
 
 
 def _chain(err: BaseException):

@@ -47,7 +47,8 @@ from ..model._mimic import Mimic, follow_locks, resolve
 from ..model._robot import Joint, Robot
 from ..model._validate import check_mass, check_positive_semidefinite
 from ._keymap import KeyMap
-from ._urdf_inertia import base_parameters, exact, inertial_parameters, link_inertia, root_inertia, rotation_translation
+from ._urdf_inertia import (balanced, base_parameters, exact, inertial_parameters, link_inertia, put_balanced,
+                             root_inertia, rotation_translation)
 from ._urdf_limits import NUMERIC_JOINT_ATTRIBUTES, joint_limits
 
 _JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed"}
@@ -65,6 +66,7 @@ def read_urdf(
     drives: bool = False,
     mimic: bool = False,
     floating_base: bool = False,
+    balance_inertia: bool = False,
 ) -> Robot:
     """Build a :class:`Robot` from the URDF file ``path``.
 
@@ -86,6 +88,10 @@ def read_urdf(
             are independent joints, with a :class:`~jaxskid.DescriptionWarning`).
         floating_base: make the root link a free-flyer base body (:attr:`Robot.floating_base`): ``q`` is then
             ``(x, y, z, qx, qy, qz, qw, joint positions)`` and velocities ``(omega, v, joint velocities)``.
+        balance_inertia: replace each ``<inertia>`` that no rigid body has (not positive semi-definite, or
+            principal moments that break the triangle inequality) by the isotropic one of the same trace, as
+            MuJoCo's ``balanceinertia``, with one :class:`~jaxskid.DescriptionWarning` naming the links (else
+            the first that is not positive semi-definite is a :class:`ModelError`).
 
     Returns:
         the robot, with ``n_dof`` = number of revolute, continuous and prismatic joints, not locked or mimic.
@@ -97,17 +103,21 @@ def read_urdf(
     """
     source = os.fspath(path)
     try:
-        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base)
+        return _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base,
+                     balance_inertia)
     except ModelError as err:
         raise err.located(source=source) from None
 
 
-def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base) -> Robot:
+def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base,
+          balance_inertia=False) -> Robot:
     data = _read_bytes(source)
-    _check_document(_parse_xml(data))
+    fixes = {} if balance_inertia else None
+    _check_document(_parse_xml(data), mimic, fixes)
     urdf = _load_yourdfpy(data).robot
     order, root_link = _walk_tree(urdf.links, urdf.joints)
     links = {link.name: link for link in urdf.links}
+    put_balanced(source, links, fixes)
     locked = _check_lock(lock, order)
     mimics = _mimics(order) if mimic else None
     if mimics:
@@ -153,7 +163,7 @@ def _mimics(order) -> dict[str, Mimic]:
 def _joints(source, order, links, locked, mimics) -> list[Joint]:
     """The URDF joints in the order of the walk: locked ones fixed, mimic ones coupled by ``mimics`` (or None)."""
     body = {order[0].parent: -1} if order else {}
-    joints = []
+    joints, dropped = [], []
     for k, j in enumerate(order):
         body[j.child] = k
         kind = _JOINT_TYPES[j.type]
@@ -165,11 +175,29 @@ def _joints(source, order, links, locked, mimics) -> list[Joint]:
         elif mimics is not None and j.name in mimics:
             joint = replace(joint, mimic=mimics[j.name])
         elif mimics is None and j.mimic is not None and kind != "fixed":
-            warnings.warn(f"{source}: joint[name={j.name}].mimic: read as an independent joint (its coupling to "
-                          f"{j.mimic.joint!r} is dropped); load with mimic=True to couple it",
-                          DescriptionWarning, stacklevel=5)
+            dropped.append((j.name, j.mimic.joint))
         joints.append(joint)
+    _warn_dropped_mimics(source, dropped, {j.name for j in order})
     return joints
+
+
+def _warn_dropped_mimics(source: str, dropped: list[tuple[str, str]], names: set[str]) -> None:
+    """One warning for the ``<mimic>`` joints read as independent joints (``(joint, followed joint)``)."""
+    if not dropped:
+        return
+    (first, target), more = dropped[0], len(dropped) - 1
+
+    def coupling(joint: str, followed: str) -> str:
+        return f"{joint!r} to {followed!r}" + ("" if followed in names else " (no joint of that name)")
+
+    if more:
+        listed = ", ".join(coupling(a, b) for a, b in dropped)
+        text = f"read as independent joints with {more} more <mimic> joints (their couplings dropped: {listed})"
+    else:
+        text = f"read as an independent joint (its coupling to {target!r} is dropped" + (
+            ")" if target in names else "; there is no joint of that name)")
+    warnings.warn(f"{source}: joint[name={first}].mimic: {text}; load with mimic=True to couple "
+                  f"{'them' if more else 'it'}", DescriptionWarning, stacklevel=6)
 
 
 def _drives(joints: list[Joint], urdf_joints: Mapping) -> tuple[list[Joint], dict[str, float]]:
@@ -283,8 +311,10 @@ def _load_yourdfpy(data: bytes):
 # ---------------------------------------------------------------------------------------------- checking
 
 
-def _check_document(root) -> None:
-    """Everything yourdfpy would accept silently, misread, or fail on with a bare exception."""
+def _check_document(root, mimic: bool = False, fixes: dict | None = None) -> None:
+    """Everything yourdfpy would accept silently, misread, or fail on with a bare exception. A ``<mimic>`` of
+    an unknown joint is an error only with ``mimic`` (else the coupling is dropped anyway); with ``fixes`` (a
+    dict), the inertias that :func:`balanced` changes are put there by link name instead of refused."""
     if not root.get("name"):
         raise ModelError("expected a non-empty name attribute", where="robot.name")
     links = root.findall("link")
@@ -300,7 +330,7 @@ def _check_document(root) -> None:
         link_names.add(name)
         inertial = el.find("inertial")
         if inertial is not None:
-            _check_inertial(inertial, f"link[name={name}].inertial")
+            _check_inertial(inertial, f"link[name={name}].inertial", fixes, name)
 
     joint_names: set[str] = set()
     mimics = []
@@ -343,12 +373,12 @@ def _check_document(root) -> None:
                 if mimic.get(attr) is not None:
                     _floats(mimic.get(attr), 1, f"{where}.mimic.{attr}")
             mimics.append((where, mimic.get("joint")))
-    for where, target in mimics:
+    for where, target in mimics if mimic else ():
         if target not in joint_names:
             raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
 
 
-def _check_inertial(el, where: str) -> None:
+def _check_inertial(el, where: str, fixes: dict | None = None, link: str = "") -> None:
     _check_origin(el.find("origin"), f"{where}.origin")
     mass = el.find("mass")
     if mass is None:
@@ -363,8 +393,13 @@ def _check_inertial(el, where: str) -> None:
         )
     ixx, ixy, ixz, iyy, iyz, izz = (_floats(inertia.get(k), 1, f"{where}.inertia.{k}")[0] for k in _INERTIA_KEYS)
     ic = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    fixed = None if fixes is None else balanced(ic)
+    if fixed is not None:
+        fixes[link] = fixed
+        return
     check_positive_semidefinite(ic, max(1.0, float(np.abs(ic).max())), f"{where}.inertia",
-                                "positive semi-definite inertia about the centre of mass")
+                                "positive semi-definite inertia about the centre of mass",
+                                "; load(..., balance_inertia=True) makes such an inertia isotropic with its trace")
 
 
 def _check_origin(el, where: str) -> None:

@@ -10,12 +10,14 @@ base keeps its root link's inertia the same way.
 from __future__ import annotations
 
 import re
+import warnings
+from collections.abc import Mapping
 from dataclasses import replace
 
 import numpy as np
 import sympy as sp
 
-from .._errors import ModelError
+from .._errors import DescriptionWarning, ModelError
 from ..model import _lie as lie
 from ..model._robot import Joint, symbol
 
@@ -90,3 +92,34 @@ def _parameter_names(link: str, owner: dict[str, str]) -> list[str]:
         )
     owner[prefix] = link
     return [f"{prefix}_{k}" for k in lie.STANDARD_PARAMETER_NAMES]
+
+
+TRIANGLE_TOL = 1e-6
+"""Relative to the largest principal moment: how far ``I1 + I2 >= I3`` may fail (round-off in a file's digits)."""
+
+
+def balanced(ic: np.ndarray) -> np.ndarray | None:
+    """A rotational inertia about the centre of mass that no rigid body has, made isotropic with the same trace
+    (MuJoCo's ``balanceinertia``), for ``load(..., balance_inertia=True)``; None when ``ic`` is physical:
+    positive semi-definite with principal moments that keep the triangle inequality (a planar model's moment
+    about one axis only counts as physical), or when its trace is negative (no balance makes that a body)."""
+    moments = np.linalg.eigvalsh(0.5 * (ic + ic.T))
+    largest = max(abs(moments).max(), 1e-300)
+    planar = moments[0] >= -1e-12 * largest and moments[1] <= 1e-12 * largest
+    if planar or (moments[0] >= -1e-9 * largest and moments[0] + moments[1] - moments[2] >= -TRIANGLE_TOL * largest):
+        return None
+    trace = float(moments.sum())
+    return None if trace < 0 else np.eye(3) * (trace / 3)
+
+
+def put_balanced(source: str, links: Mapping, fixes: dict | None) -> None:
+    """Put the balanced inertias of ``fixes`` (``{link: inertia}``, from :func:`_check_document`) into
+    yourdfpy's links, with one warning."""
+    if not fixes:
+        return
+    for name, ic in fixes.items():
+        links[name].inertial.inertia = ic
+    listed = ", ".join(f"{name} ({ic[0, 0]:.6g})" for name, ic in fixes.items())
+    warnings.warn(f"{source}: link[name={next(iter(fixes))}].inertial.inertia: {len(fixes)} inertia(s) that no rigid "
+                  f"body has made isotropic with the same trace (balance_inertia=True): {listed}",
+                  DescriptionWarning, stacklevel=5)

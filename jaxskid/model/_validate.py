@@ -174,11 +174,11 @@ def check_mass(mass: float | None, where: str, entry: str = "") -> None:
         raise ModelError(f"expected a non-negative mass{entry}, got {mass:.6g}", where=where)
 
 
-def check_positive_semidefinite(i3: np.ndarray, scale: float, where: str, what: str) -> None:
-    """A 3x3 rotational inertia with no eigenvalue below ``-EIGEN_TOL * scale``."""
+def check_positive_semidefinite(i3: np.ndarray, scale: float, where: str, what: str, hint: str = "") -> None:
+    """A 3x3 rotational inertia with no eigenvalue below ``-EIGEN_TOL * scale`` (``hint`` ends the message)."""
     ev = np.linalg.eigvalsh(i3)
     if ev.min() < -EIGEN_TOL * scale:
-        raise ModelError(f"expected a {what}, got eigenvalues {np.round(ev, 9).tolist()}", where=where)
+        raise ModelError(f"expected a {what}, got eigenvalues {np.round(ev, 9).tolist()}{hint}", where=where)
 
 
 def differ(a, b) -> bool:
