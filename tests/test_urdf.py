@@ -222,7 +222,6 @@ BAD = [
     ("two_roots.urdf", "robot", "exactly one root link (a link that is no joint's child), got 2: base, loose"),
     ("two_parents.urdf", "joint[name=j2].child", "one parent joint"),
     ("cycle.urdf", "joint[name=j", "cycle of joints"),
-    ("floating_joint.urdf", "joint[name=j1].type", "unsupported type 'floating'"),
     ("planar_joint.urdf", "joint[name=j1].type", "unsupported type 'planar'"),
     ("unknown_type.urdf", "joint[name=j1].type", "expected one of revolute, continuous, prismatic, fixed"),
     ("missing_type.urdf", "joint[name=j1].type", "got no type"),

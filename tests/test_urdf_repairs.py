@@ -126,3 +126,49 @@ def test_tiago_loads_balanced_and_agrees_with_pinocchio():
     assert helpers.rel_err(dyn.mass_matrix(q), m_ref[np.ix_(idx, idx)]) < 1e-12
     tau_ref = pin.rnea(model, data, pq, pv, pa)
     assert helpers.rel_err(dyn.inverse_dynamics(q, qd, qdd), tau_ref[idx]) < 1e-12
+
+
+def _with_world(tmp_path, origin: str = "") -> Path:
+    """Solo12 with a ``world`` link and a floating joint from it to the base, as files written for MuJoCo have."""
+    text = helpers.URDFS["solo12"].read_text()
+    first = text.index("<link ")
+    world = ('<link name="world"/>\n<joint name="floating_base_joint" type="floating"><parent link="world"/>'
+             f'<child link="base_link"/>{origin}</joint>\n')
+    path = tmp_path / "solo12_world.urdf"
+    path.write_text(text[:first] + world + text[first:])
+    return path
+
+
+def test_a_floating_joint_from_the_root_is_the_floating_base(tmp_path):
+    """Read as ``floating_base=True`` on the file without it, and as Pinocchio reads the file (a free-flyer)."""
+    path = _with_world(tmp_path)
+    robot = jaxskid.load(path)
+    assert robot.floating_base and robot.base == "base_link" and robot.n_dof == 12
+    assert robot.fingerprint() == jaxskid.load(helpers.URDFS["solo12"], floating_base=True).fingerprint()
+    model = pin.buildModelFromUrdf(str(path))
+    assert model.joints[1].shortname() == "JointModelFreeFlyer"
+    data = model.createData()
+    rng = np.random.default_rng(5)
+    quat = rng.normal(size=4)
+    q = np.r_[rng.uniform(-1, 1, 3), quat / np.linalg.norm(quat), rng.uniform(-1, 1, 12)]
+    qd, qdd = rng.uniform(-1, 1, (2, 18))
+    names = [model.names[k] for k in range(2, model.njoints)]
+    assert names == list(robot.joint_names)  # the same depth-first order
+    swap = np.r_[3:6, 0:3, 6:18]  # jaxskid's base velocity is (omega, v), Pinocchio's (v, omega)
+    dyn = jaxskid.lower(robot, ["mass_matrix", "inverse_dynamics"])
+    m_ref = pin.crba(model, data, q)
+    m_ref = np.triu(m_ref) + np.triu(m_ref, 1).T
+    assert helpers.rel_err(dyn.mass_matrix(q), m_ref[np.ix_(swap, swap)]) < 1e-12
+    tau_ref = pin.rnea(model, data, q, qd[swap], qdd[swap])
+    assert helpers.rel_err(dyn.inverse_dynamics(q, qd, qdd), tau_ref[swap]) < 1e-12
+
+
+def test_a_floating_joint_with_an_origin_or_below_the_root_is_refused(tmp_path):
+    path = _with_world(tmp_path, '<origin xyz="0 0 1"/>')
+    with pytest.raises(ModelError) as info:
+        jaxskid.load(path)
+    assert info.value.where == "joint[name=floating_base_joint].origin" and "identity" in info.value.message
+    path.write_text(path.read_text().replace('<joint name="FL_HAA" type="revolute">', '<joint name="FL_HAA" type="floating">'))
+    with pytest.raises(ModelError) as info:
+        jaxskid.load(path)
+    assert info.value.where == "joint[name=FL_HAA].type" and "below the root" in info.value.message

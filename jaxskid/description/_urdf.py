@@ -8,7 +8,9 @@ Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/par
 
 * the root link is welded to the world; its inertia is dropped and its name is ``Robot.base``; with
   ``floating_base=True`` it is the free-flyer base body instead (Pinocchio's ``buildModelFromUrdf(path,
-  JointModelFreeFlyer())``), which keeps its inertia (10 parameters ``{root}_m, ...`` like every body's);
+  JointModelFreeFlyer())``), which keeps its inertia (10 parameters ``{root}_m, ...`` like every body's); a
+  ``floating`` joint from the root link (``world`` -> base, as files written for MuJoCo have) is read the same
+  way, its child the base body, as Pinocchio reads it (a ``floating`` joint anywhere else is refused);
 * the frame of a child link is its joint's frame, ``B_i = origin(xyz, rpy)`` with
   ``R = Rz(yaw) Ry(pitch) Rx(roll)``; the screw is ``(a, 0)`` (revolute, continuous) or ``(0, a)``
   (prismatic), ``a`` the joint axis normalised to unit length;
@@ -50,6 +52,7 @@ from ._keymap import KeyMap
 from ._urdf_inertia import (balanced, base_parameters, exact, inertial_parameters, link_inertia, put_balanced,
                              root_inertia, rotation_translation)
 from ._urdf_limits import NUMERIC_JOINT_ATTRIBUTES, joint_limits
+from ._urdf_tree import walk_tree
 
 _JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed"}
 _SUPPORTED = ", ".join(_JOINT_TYPES)
@@ -98,7 +101,7 @@ def read_urdf(
 
     Raises:
         ModelError: ``"<path>: <key path>: expected ..., got ..."`` for an unreadable or malformed file,
-            an unsupported joint (floating, planar), a link tree that is not a tree with one root, or
+            an unsupported joint (planar; floating other than from the root link), a link tree that is not a tree with one root, or
             invalid inertial values.
     """
     source = os.fspath(path)
@@ -115,7 +118,8 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic,
     fixes = {} if balance_inertia else None
     _check_document(_parse_xml(data), mimic, fixes)
     urdf = _load_yourdfpy(data).robot
-    order, root_link = _walk_tree(urdf.links, urdf.joints)
+    order, root_link, floating_root = walk_tree(urdf.links, urdf.joints)
+    floating_base = floating_base or floating_root
     links = {link.name: link for link in urdf.links}
     put_balanced(source, links, fixes)
     locked = _check_lock(lock, order)
@@ -333,7 +337,7 @@ def _check_document(root, mimic: bool = False, fixes: dict | None = None) -> Non
             _check_inertial(inertial, f"link[name={name}].inertial", fixes, name)
 
     joint_names: set[str] = set()
-    mimics = []
+    mimics, floating = [], []
     for k, el in enumerate(root.findall("joint")):
         name = el.get("name")
         if not name:
@@ -343,9 +347,11 @@ def _check_document(root, mimic: bool = False, fixes: dict | None = None) -> Non
             raise ModelError(f"expected unique joint names, got {name!r} twice", where=f"{where}.name")
         joint_names.add(name)
         kind = el.get("type")
-        if kind not in _JOINT_TYPES:
-            if kind in ("floating", "planar"):
-                got = f"unsupported type {kind!r} (only fixed-base trees: the root link is welded to the world)"
+        if kind == "floating":
+            floating.append((where, el.find("parent"), el.find("child")))
+        elif kind not in _JOINT_TYPES:
+            if kind == "planar":
+                got = f"unsupported type {kind!r} (trees of revolute and prismatic joints, a floating base at the root)"
             else:
                 got = "no type" if kind is None else f"unknown type {kind!r}"
             raise ModelError(f"expected one of {_SUPPORTED}, got {got}", where=f"{where}.type")
@@ -373,9 +379,21 @@ def _check_document(root, mimic: bool = False, fixes: dict | None = None) -> Non
                 if mimic.get(attr) is not None:
                     _floats(mimic.get(attr), 1, f"{where}.mimic.{attr}")
             mimics.append((where, mimic.get("joint")))
+    _check_floating(floating, root)
     for where, target in mimics if mimic else ():
         if target not in joint_names:
             raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
+
+
+def _check_floating(floating: list, root) -> None:
+    """A ``floating`` joint only as the root link's one joint (``(where, <parent>, <child>)`` each)."""
+    children = [j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None]
+    for where, parent, _ in floating:
+        link = parent.get("link")
+        if link in children or sum(j.find("parent").get("link") == link for j in root.findall("joint")) > 1:
+            raise ModelError("expected one of revolute, continuous, prismatic, fixed, got unsupported type 'floating' "
+                             "below the root (a floating joint is read only as the root link's one joint: the "
+                             "floating base)", where=f"{where}.type")
 
 
 def _check_inertial(el, where: str, fixes: dict | None = None, link: str = "") -> None:
@@ -425,50 +443,6 @@ def _floats(text: str | None, n: int, where: str, infinite: bool = False) -> lis
         wanted = ("a number, not nan" if infinite else "a finite number") if n == 1 else "finite numbers"
         raise ModelError(f"expected {wanted}, got {text!r}", where=where)
     return values
-
-
-def _walk_tree(links, joints) -> tuple[list, str]:
-    """The joints in depth-first order from the single root link, children in the order of their names."""
-    parent_joint: dict = {}
-    for j in joints:
-        if j.child in parent_joint:
-            raise ModelError(
-                f"expected each link to have one parent joint, got link {j.child!r} also the child of joint "
-                f"{parent_joint[j.child].name!r}",
-                where=f"joint[name={j.name}].child",
-            )
-        parent_joint[j.child] = j
-    roots = [link.name for link in links if link.name not in parent_joint]
-    if len(roots) > 1:
-        raise ModelError(
-            f"expected exactly one root link (a link that is no joint's child), got {len(roots)}: {', '.join(roots)}",
-            where="robot",
-        )
-    children: dict[str, list] = {}
-    for j in joints:
-        children.setdefault(j.parent, []).append(j)
-    for c in children.values():
-        c.sort(key=lambda j: j.name.encode())  # std::string order, as urdfdom's std::map
-    order: list = []
-    if roots:
-        stack = list(reversed(children.get(roots[0], [])))
-        while stack:
-            j = stack.pop()
-            order.append(j)
-            stack.extend(reversed(children.get(j.child, [])))
-    if len(order) < len(joints):  # a link whose parent chain never reaches the root lies on a cycle
-        reached = {j.name for j in order}
-        link = next(j.child for j in joints if j.name not in reached)
-        chain: list[str] = []
-        while link not in chain:
-            chain.append(link)
-            link = parent_joint[link].parent
-        cycle = [parent_joint[x].name for x in chain[chain.index(link):]]
-        raise ModelError(
-            f"expected a tree, got a cycle of joints {' -> '.join([*reversed(cycle), cycle[-1]])}",
-            where=f"joint[name={cycle[-1]}]",
-        )
-    return order, roots[0]
 
 
 # ---------------------------------------------------------------------------------------------- numbers
