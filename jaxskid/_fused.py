@@ -56,6 +56,8 @@ _COS_F32 = (2.443315711809948e-5, -1.388731625493765e-3, 4.166664568298827e-2)
 def _sincos(x):
     """(sin x, cos x) from multiply-adds: Cody-Waite reduction by pi/2, polynomials on [-pi/4, pi/4]."""
     x = jnp.asarray(x)
+    if jnp.issubdtype(x.dtype, jnp.complexfloating):  # complex steps: XLA's own functions
+        return jnp.sin(x), jnp.cos(x)
     if not jnp.issubdtype(x.dtype, jnp.floating):
         x = x.astype(jnp.result_type(float))
     single = x.dtype in (jnp.float32, jnp.float16, jnp.bfloat16)

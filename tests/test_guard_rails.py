@@ -245,3 +245,35 @@ def test_base_parameters_are_named_by_default():
     named = jaxskid.base_parameters(dyn).describe()
     assert named == jaxskid.base_parameters(dyn, names=jaxskid.standard_parameter_names(robot)).describe()
     assert any("link2_m" in d for d in named) and not any("pi[" in d for d in named)
+
+
+@pytest.mark.parametrize("value", ["abc", None, [[0.1, 0.2], [0.3]], object()], ids=["str", "None", "ragged", "object"])
+def test_a_state_that_is_no_array_of_numbers_names_the_argument(ur5, value):
+    with pytest.raises(jaxskid.InputError, match=r"^inverse_dynamics: qd: expected an array of numbers, got "):
+        ur5.inverse_dynamics(np.zeros(6), value, np.zeros(6))
+
+
+def test_complex_steps_pass_through_every_call(ur5):
+    """Complex states and parameters (a dict entry or the vector) keep their imaginary part, so that
+    Im f(x + i h e_k) / h is the derivative: checked against central differences of the real calls."""
+    rng = np.random.default_rng(7)
+    q, qd, qdd = rng.uniform(-1, 1, (3, 6))
+    params = ur5.default_params()
+    names = list(ur5.parameters)
+    h, e = 1e-30, 1e-6
+    calls = {"mass_matrix": lambda q, p: ur5.mass_matrix(q, p),
+             "inverse_dynamics": lambda q, p: ur5.inverse_dynamics(q, qd, qdd, p),
+             "forward_dynamics": lambda q, p: ur5.forward_dynamics(q, qd, qdd, p)}
+    k, name = 2, names[13]  # a joint, and a parameter of the third body
+    vector = np.array([params[n] for n in names])
+    for call in calls.values():
+        dq = e * np.eye(6)[k]
+        central_q = (np.asarray(call(q + dq, params)) - np.asarray(call(q - dq, params))) / (2 * e)
+        step_q = np.imag(np.asarray(call(q + 1j * h * np.eye(6)[k], params))) / h
+        np.testing.assert_allclose(step_q, central_q, rtol=1e-6, atol=1e-6 * np.abs(central_q).max())
+        bump = e * np.eye(len(names))[names.index(name)]
+        central_p = (np.asarray(call(q, vector + bump)) - np.asarray(call(q, vector - bump))) / (2 * e)
+        step_dict = np.imag(np.asarray(call(q, {**params, name: params[name] + 1j * h}))) / h
+        step_vector = np.imag(np.asarray(call(q, vector + 1j * h * bump / e))) / h
+        for step in (step_dict, step_vector):
+            np.testing.assert_allclose(step, central_p, rtol=1e-6, atol=1e-6 * np.abs(central_p).max())

@@ -347,7 +347,8 @@ def test_default_reads_mimic_joints_as_independent_and_warns_naming_the_option(c
     mimics = [j[0] for j in joints if len(j) == 8]
     assert robot.n_dof == len(joints) and not robot.mimic_joints
     (message,) = (str(w.message) for w in record)  # one warning per file, naming every mimic joint
-    assert message.startswith(f"{path}: joint[name=") and message.split(": ")[1] in [f"joint[name={m}].mimic" for m in mimics]
+    assert message.startswith(f"{path}: joint[name=")
+    assert message.split(": ")[1] in [f"joint[name={m}].mimic" for m in mimics]
     assert all(f"'{m}' to " in message for m in mimics) if len(mimics) > 1 else message.count("coupling to ") == 1
 
 

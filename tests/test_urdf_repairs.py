@@ -168,7 +168,8 @@ def test_a_floating_joint_with_an_origin_or_below_the_root_is_refused(tmp_path):
     with pytest.raises(ModelError) as info:
         jaxskid.load(path)
     assert info.value.where == "joint[name=floating_base_joint].origin" and "identity" in info.value.message
-    path.write_text(path.read_text().replace('<joint name="FL_HAA" type="revolute">', '<joint name="FL_HAA" type="floating">'))
+    text = path.read_text()
+    path.write_text(text.replace('<joint name="FL_HAA" type="revolute">', '<joint name="FL_HAA" type="floating">'))
     with pytest.raises(ModelError) as info:
         jaxskid.load(path)
     assert info.value.where == "joint[name=FL_HAA].type" and "below the root" in info.value.message

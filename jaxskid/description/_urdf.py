@@ -101,8 +101,8 @@ def read_urdf(
 
     Raises:
         ModelError: ``"<path>: <key path>: expected ..., got ..."`` for an unreadable or malformed file,
-            an unsupported joint (planar; floating other than from the root link), a link tree that is not a tree with one root, or
-            invalid inertial values.
+            an unsupported joint (planar; floating other than from the root link), a link tree that is not a
+            tree with one root, or invalid inertial values.
     """
     source = os.fspath(path)
     try:

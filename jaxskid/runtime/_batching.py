@@ -19,10 +19,11 @@ from .._errors import ShapeError
 
 
 def float_arrays(values: Sequence) -> tuple[list[jax.Array], jnp.dtype]:
-    """The inputs as arrays of one floating dtype: their common one, or the default float for integers."""
+    """The inputs as arrays of one inexact dtype: their common one (complex kept, for complex-step
+    derivatives), or the default float for integers and booleans."""
     arrays = [jnp.asarray(x) for x in values]
     dtype = jnp.result_type(*arrays) if arrays else jnp.result_type(float)
-    if not jnp.issubdtype(dtype, jnp.floating):
+    if not jnp.issubdtype(dtype, jnp.inexact):
         dtype = jnp.result_type(float)
     return [x.astype(dtype) for x in arrays], dtype
 

@@ -72,9 +72,24 @@ def _finite_sum(value) -> bool | None:
     return None if array is None else math.isfinite(np.vdot(array, array).real)
 
 
+def _not_numeric(value) -> bool:
+    """Whether a concrete argument is no array of numbers (a string, None, an object): JAX's own error would name
+    a function inside jaxskid. JAX arrays and tracers are numeric."""
+    if isinstance(value, (jax.Array, jax.core.Tracer)):
+        return False
+    try:
+        return np.asarray(value).dtype.kind not in "biufc"
+    except (TypeError, ValueError):  # ragged nested lists
+        return True
+
+
 def check_finite(where: str, named: Iterable[tuple[str, object]]) -> None:
-    """Raise :class:`InputError` for the first argument ``(name, value)`` that holds NaN or inf."""
+    """Raise :class:`InputError` for the first argument ``(name, value)`` that is not an array of numbers or
+    holds NaN or inf."""
     for name, value in named:
+        if _not_numeric(value):
+            shown = repr(value) if len(repr(value)) <= 60 else f"a {type(value).__name__}"
+            raise InputError(f"{where}: {name}: expected an array of numbers, got {shown}")
         if _finite_sum(value) is not False:
             continue
         array = _concrete(value)

@@ -39,12 +39,12 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import RequestError
-from ._batching import batch_shape, float_arrays, vmapped
+from ._batching import batch_shape, vmapped
 from ._ffi import native_call
 from ._forward import _bias
 from ._jit import jit
 from ._ldl import assemble, materialize
-from ._parameters import param_array
+from ._parameters import inexact_inputs
 from ._pullback import Rule, tangent_p
 from ._sparse import kkt, minus, plus
 
@@ -295,8 +295,7 @@ def _state_batch(dyn, where: str, states: Sequence[tuple[str, jax.Array]], p: ja
 
 @partial(jit, static_argnames=("dyn", "stabilization", "regularization"))
 def _forward(dyn, q, qd, tau, params, stabilization, regularization):
-    (q, qd, tau), dtype = float_arrays((q, qd, tau))
-    p = param_array(dyn.layout, params, dtype)
+    (q, qd, tau), p, dtype = inexact_inputs(dyn.layout, (q, qd, tau), params)
     batch = _state_batch(dyn, "constrained_forward_dynamics", [("q", q), ("qd", qd), ("tau", tau)], p)
     joined = _joined(dyn, stabilization, regularization)
     out = joined(q, qd, tau, p) if not batch else vmapped(joined, batch, [(q, 1), (qd, 1), (tau, 1), (p, 1)])
@@ -349,8 +348,7 @@ def _actuated(dyn, actuated) -> tuple[int, ...]:
 
 @partial(jit, static_argnames=("dyn", "columns"))
 def _inverse(dyn, q, qd, qdd, params, columns):
-    (q, qd, qdd), dtype = float_arrays((q, qd, qdd))
-    p = param_array(dyn.layout, params, dtype)
+    (q, qd, qdd), p, dtype = inexact_inputs(dyn.layout, (q, qd, qdd), params)
     batch = _state_batch(dyn, "constrained_inverse_dynamics", [("q", q), ("qd", qd), ("qdd", qdd)], p)
     fn = _functions(dyn)
     nv = qd.shape[-1]

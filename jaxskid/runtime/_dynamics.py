@@ -24,7 +24,7 @@ from ._base import QuantitySet, metadata_fields
 from ._cuda import CudaKernel, cuda_kernel, enabled as cuda_enabled
 from ._cuda_rollout import rollout_kernels
 from ._ffi import enabled as native_enabled, library, log, native_quantity, target
-from ._batching import batch_shape, float_arrays, vmapped
+from ._batching import batch_shape, vmapped
 from ._constrained import constrained_forward_dynamics, constrained_inverse_dynamics
 from ._deferred import Deferred, OnDemand
 from ._forward import accelerations, forward_dynamics
@@ -32,7 +32,7 @@ from ._gathered import gathered, padded_batch
 from ._checks import check_finite, check_inputs
 from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
-from ._parameters import param_array
+from ._parameters import inexact_inputs
 from ._pullback import with_pullback
 from ._quantity import Quantity
 
@@ -382,8 +382,7 @@ class Dynamics(QuantitySet):
         n_params = (len(self.parameters),)
 
         def call(*state, params=None, pair=False, out=None):
-            arrays, dtype = float_arrays(state)
-            p = param_array(self.layout, params, dtype)
+            arrays, p, dtype = inexact_inputs(self.layout, state, params)
             batch = batch_shape(name, [(a, x.shape, cores[a]) for a, x in zip(args, arrays)], [("params", p.shape, n_params)])
             if out is not None:
                 _check_out(name, out, (*batch, *shape), dtype)

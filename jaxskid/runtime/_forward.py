@@ -22,13 +22,13 @@ import jax
 import jax.numpy as jnp
 
 from .._errors import RequestError
-from ._batching import batch_shape, float_arrays, vmapped
+from ._batching import batch_shape, vmapped
 from ._ffi import native_quantity
 from ._checks import check_inputs
 from ._jit import jit, top_level, traced
 from ._implicit import differentiable
 from ._ldl import materialize
-from ._parameters import param_array
+from ._parameters import inexact_inputs
 from ._sparse import mass_solver
 
 
@@ -95,8 +95,7 @@ def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Calla
 
 @partial(jit, static_argnames=("dyn", "native"))
 def _forward_dynamics(dyn, q, qd, tau, params, wrench, native=None):
-    (q, qd, tau), dtype = float_arrays((q, qd, tau))
-    p = param_array(dyn.layout, params, dtype)
+    (q, qd, tau), p, dtype = inexact_inputs(dyn.layout, (q, qd, tau), params)
     extras = [("params", p.shape, (len(dyn.parameters),))]
     if wrench is not None:
         wrench = jnp.asarray(wrench, dtype)

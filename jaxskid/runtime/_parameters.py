@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import InputError, ShapeError
+from ._batching import float_arrays
 from ..model._parameters import ParameterLayout
 
 _PLAIN = (float, int, np.floating, np.integer)
@@ -73,13 +74,28 @@ def param_array(layout: ParameterLayout, params=None, dtype=None, where: str = "
         host = _packed(values)
         if host is not None:
             return jnp.asarray(host, dtype=dtype)
+        if any(np.iscomplexobj(v) for v in values):  # a complex step in a parameter: keep it
+            dtype = jnp.promote_types(dtype, jnp.complex64)
         arrays = [jnp.asarray(v, dtype) for v in values]
         return jnp.stack(jnp.broadcast_arrays(*arrays), axis=-1)
+    if dtype is not None and np.iscomplexobj(params):
+        dtype = jnp.promote_types(dtype, jnp.complex64)
     p = jnp.asarray(params) if dtype is None else jnp.asarray(params, dtype)
-    if dtype is None and not jnp.issubdtype(p.dtype, jnp.floating):
+    if dtype is None and not jnp.issubdtype(p.dtype, jnp.inexact):
         p = p.astype(jnp.result_type(float))
     _check_vector(p.shape, layout, where)
     return p
+
+
+def inexact_inputs(layout: ParameterLayout, states, params, where: str = "params"):
+    """``(states, p, dtype)``: the state arrays and the parameters (:func:`param_array`) in one inexact dtype,
+    complex where either is (complex-step derivatives)."""
+    arrays, dtype = float_arrays(states)
+    p = param_array(layout, params, dtype, where)
+    if p.dtype != dtype:
+        dtype = p.dtype
+        arrays = [x.astype(dtype) for x in arrays]
+    return arrays, p, dtype
 
 
 def check_numeric(names, values, where: str = "params") -> None:
@@ -135,6 +151,8 @@ class HostParameters:
             return self._pack_mapping(params, where)
         if isinstance(params, jax.Array):
             return None
+        if np.iscomplexobj(params):
+            return None  # complex steps: converted by param_array, inside the jitted function
         try:
             p = np.asarray(params, dtype=np.float64)
         except (TypeError, ValueError):
