@@ -23,7 +23,7 @@ import pytest
 import yaml
 
 import jaxskid
-from helpers import PANDA, URDFS, pinocchio_urdf_model
+from helpers import ERD, PANDA, URDFS, pinocchio_urdf_model
 from pinref import to_pinocchio
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -307,6 +307,17 @@ def test_info_tables_and_tree():
     assert "robot hopping_leg: 2 joint(s)" in locked.stdout
 
 
+def test_urdf_flags_reach_the_reader():
+    """--balance-inertia loads TIAGo (two antenna links with indefinite inertias), which is refused without it
+    with the option named; --floating-base makes the root a free-flyer."""
+    tiago = ERD / "tiago_description/robots/tiago_no_hand.urdf"
+    one_line_error(jaxskid_cmd("info", tiago), 1, "base_antenna_left_link", "balance_inertia=True")
+    balanced = jaxskid_cmd("info", tiago, "--balance-inertia", check_rc=0)
+    assert "robot tiago: 12 joint(s)" in balanced.stdout and "base_antenna_right_link" in balanced.stderr
+    floating = jaxskid_cmd("info", URDFS["solo12"], "--floating-base", check_rc=0)
+    assert "floating base 'base_link'" in floating.stdout
+
+
 def test_reports_are_public_functions(tmp_path):
     robot = jaxskid.load(LEG, lock={"knee": 0.5})
     text = jaxskid.describe(robot)
@@ -467,6 +478,7 @@ BAD_USAGE = [
     (("generate", "no_such_robot.yaml"), "does not exist"),
     (("info", ARM, "--lock", "elbow"), "JOINT=POSITION"),
     (("info", ROOT / "pyproject.toml"), ".urdf"),
+    (("info", ARM, "--mimic"), "--mimic reads a .urdf file"),
     (("frobnicate",), "No such command"),
 ]
 

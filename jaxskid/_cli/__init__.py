@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from ._errors import BadInput
-from ._options import DIALECT, END_EFFECTORS
+from ._options import DIALECT, END_EFFECTORS, URDF_META, urdf_options
 
 TARGET_NAMES = ("jax", "python", "c", "cpp", "cython", "julia", "matlab", "latex")
 ROBOT_SUFFIXES = (".urdf", ".yaml", ".yml", ".json", ".py")
@@ -118,8 +118,13 @@ def load_robot(path: str, lock: dict[str, float] | None = None, dialect: str = "
     import jaxskid
 
     p = Path(path)
+    ctx = click.get_current_context(silent=True)
+    flags = ctx.meta.get(URDF_META, {}) if ctx is not None else {}
+    if flags and p.suffix.lower() != ".urdf":
+        raise click.UsageError(f"--{next(iter(flags)).replace('_', '-')} reads a .urdf file, got {path}")
     if p.suffix.lower() != ".py":
-        return jaxskid.load(p, lock=lock or None, dialect=dialect, end_effectors=end_effectors or None, **options)
+        return jaxskid.load(p, lock=lock or None, dialect=dialect, end_effectors=end_effectors or None,
+                            **flags, **options)
     import runpy
 
     try:
@@ -167,6 +172,7 @@ def cli():
 @click.option("-o", "--out", "out", type=click.Path(file_okay=False), default=None,
               help="Output folder [default: ./generated/<robot name>].")
 @LOCK
+@urdf_options
 @click.option("--symbolic", "symbolic", default=None, metavar="P1,P2,...",
               help="Parameters that stay inputs; every other one becomes its default value. "
                    "'' makes all of them numbers [default: all stay symbolic].")
@@ -352,6 +358,7 @@ def _write_new(path: Path, text: str, force: bool) -> None:
                    "default, and each body's inertia its 10 parameters as --symbolic-inertia does. Rotations "
                    "stay numbers.")
 @LOCK
+@urdf_options
 @DIALECT
 @END_EFFECTORS
 @FORCE
@@ -407,6 +414,7 @@ def convert(source, output, symbolic_inertia, round_tol, symbolify, lock, dialec
 @cli.command()
 @ROBOT
 @LOCK
+@urdf_options
 @DIALECT
 @END_EFFECTORS
 def info(robot, lock, dialect, end_effectors):
@@ -427,6 +435,7 @@ def info(robot, lock, dialect, end_effectors):
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="The picture to write: .svg, .png or .pdf.")
 @LOCK
+@urdf_options
 @DIALECT
 @END_EFFECTORS
 @FORCE

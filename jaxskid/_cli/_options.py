@@ -36,3 +36,25 @@ END_EFFECTORS = click.option(
     help="An end-effector NAME on the frame of LINK, offset by the translation X,Y,Z and the rotation "
          "Rz(Y) Ry(P) Rx(R) (numbers or expressions such as pi/2); repeat for several. They replace the file's "
          "own end-effectors (for a URDF: its leaf links).")
+
+
+URDF_FLAGS = {
+    "mimic": "URDF input: couple the <mimic> joints (else they are read as independent joints, with a warning).",
+    "floating_base": "URDF input: make the root link a free-flyer base body (7 + n positions, 6 + n velocities).",
+    "balance_inertia": "URDF input: make each inertia that no rigid body has isotropic with the same trace "
+                       "(MuJoCo's balanceinertia), with a warning naming the links.",
+}
+"""The URDF reader's switches (``jaxskid.load``'s options) as flags of every command that reads a robot."""
+URDF_META = "jaxskid.urdf"
+
+
+def urdf_options(command):
+    """The flags of :data:`URDF_FLAGS`, kept in the click context for ``load_robot`` (no argument of their own)."""
+    def remember(ctx, param, value):
+        if value:
+            ctx.meta.setdefault(URDF_META, {})[param.name] = True
+
+    for name, text in reversed(URDF_FLAGS.items()):
+        command = click.option(f"--{name.replace('_', '-')}", name, is_flag=True, expose_value=False,
+                               callback=remember, help=text)(command)
+    return command

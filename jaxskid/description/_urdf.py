@@ -315,10 +315,11 @@ def _load_yourdfpy(data: bytes):
 # ---------------------------------------------------------------------------------------------- checking
 
 
-def _check_document(root, mimic: bool = False, fixes: dict | None = None) -> None:
+def _check_document(root, coupled: bool = False, fixes: dict | None = None) -> None:
     """Everything yourdfpy would accept silently, misread, or fail on with a bare exception. A ``<mimic>`` of
-    an unknown joint is an error only with ``mimic`` (else the coupling is dropped anyway); with ``fixes`` (a
-    dict), the inertias that :func:`balanced` changes are put there by link name instead of refused."""
+    an unknown joint is an error only when ``coupled`` (``mimic=True``; else the coupling is dropped anyway);
+    with ``fixes`` (a dict), the inertias that :func:`balanced` changes are put there by link name instead of
+    refused."""
     if not root.get("name"):
         raise ModelError("expected a non-empty name attribute", where="robot.name")
     links = root.findall("link")
@@ -380,7 +381,7 @@ def _check_document(root, mimic: bool = False, fixes: dict | None = None) -> Non
                     _floats(mimic.get(attr), 1, f"{where}.mimic.{attr}")
             mimics.append((where, mimic.get("joint")))
     _check_floating(floating, root)
-    for where, target in mimics if mimic else ():
+    for where, target in mimics if coupled else ():
         if target not in joint_names:
             raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
 
