@@ -119,7 +119,8 @@ def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic,
     _check_document(_parse_xml(data), mimic, fixes)
     urdf = _load_yourdfpy(data).robot
     order, root_link, floating_root = walk_tree(urdf.links, urdf.joints)
-    floating_base = floating_base or floating_root
+    if floating_root and floating_base is False:  # a value other than a bool stays, to be refused by name
+        floating_base = True
     links = {link.name: link for link in urdf.links}
     put_balanced(source, links, fixes)
     locked = _check_lock(lock, order)
