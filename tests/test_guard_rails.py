@@ -277,3 +277,29 @@ def test_complex_steps_pass_through_every_call(ur5):
         step_vector = np.imag(np.asarray(call(q, vector + 1j * h * bump / e))) / h
         for step in (step_dict, step_vector):
             np.testing.assert_allclose(step, central_p, rtol=1e-6, atol=1e-6 * np.abs(central_p).max())
+
+
+def test_a_diverging_rollout_warns_naming_when_and_a_step_that_holds(ur5):
+    """Joint dampers of 50 N m s on the UR5's light wrist put a fast damped mode into the closed loop, which RK4 at
+    2 ms amplifies until the state overflows: the warning names the first saved state that is not finite, as the
+    trajectory has it, and a step at which the same rollout, measured, stays finite and says nothing."""
+    n = ur5.n_dof
+    x0 = jnp.zeros(2 * n).at[1].set(0.4)
+
+    def damped(t, x):
+        return -200.0 * x[:n] - 50.0 * x[n:]
+
+    with pytest.warns(jaxskid.RolloutWarning, match=r"the state of the rollout is not finite from t = ") as record:
+        traj = jaxskid.rollout(ur5, x0, damped, 2e-3, 300)
+    x = np.asarray(traj.x)
+    first = int(np.argmax(~np.isfinite(x).all(-1)))
+    message = str(record[0].message)
+    assert f"(saved state {first})" in message and f"t = {float(traj.t[first]):.4g} s" in message
+    dt = float(re.search(r"dt <= ([0-9.e-]+) s", message).group(1))
+    assert dt < 2e-3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", jaxskid.RolloutWarning)
+        held = jaxskid.rollout(ur5, x0, damped, dt, int(np.ceil(0.6 / dt)))
+        assert np.isfinite(np.asarray(held.x)).all()
+        quiet = jaxskid.rollout(ur5, x0, damped, 2e-3, 300, health=False)  # asked not to look
+    assert not np.isfinite(np.asarray(quiet.x)).all()

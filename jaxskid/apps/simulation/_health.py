@@ -146,3 +146,39 @@ def warn_if_below_ground(contact, x_final, stacklevel: int = 3) -> np.ndarray:
             f"jaxskid.collision_points(urdf, links=[<base link>]) as end-effectors, and their radii to "
             f"GroundContact", RolloutWarning, stacklevel=stacklevel)
     return below
+
+
+def warn_if_not_finite(dyn, controls, traj, dt, params=None, analyse: bool = True, stacklevel: int = 3) -> bool:
+    """One :class:`RolloutWarning` where a rollout's last saved state is not finite (NaN and inf do not leave a
+    rollout once they enter it): the rollouts, when it first went wrong and, where ``analyse`` (RK4, one step and
+    one parameter set), whether the step integrates the closed loop at the first saved state stably, and the step
+    that would. Returns whether every rollout ended finite (one reduction on the device when they did)."""
+    if bool(jnp.all(jnp.isfinite(traj.x[..., -1, :]))):
+        return True
+    x = np.asarray(traj.x)
+    bad = ~np.isfinite(x).all(-1)  # (..., n_saved)
+    ended = np.argwhere(np.atleast_1d(bad[..., -1]))
+    first = tuple(int(i) for i in ended[0]) if bad.ndim > 1 else ()
+    k = int(np.argmax(bad[first]))
+    times = np.asarray(traj.t)
+    t = float(times[first][k] if times.ndim > 1 else times[k])
+    names = ", ".join(str(tuple(int(i) for i in b)) if len(b) > 1 else str(int(b[0])) for b in ended[:5])
+    more = f" and {len(ended) - 5} more" if len(ended) > 5 else ""
+    which = f"rollouts {names}{more} of {np.size(bad[..., -1])}" if bad.ndim > 1 else "the rollout"
+    since = f"from t = {t:.4g} s (saved state {k})" if k else "at every saved state"
+    text = f"rollout: the state of {which} is not finite {since} on: it diverged."
+    start = x[first][0]
+    if analyse and k and np.isfinite(start).all():
+        check = step_stability(dyn, controls, jnp.asarray(start), float(np.max(dt)), params)
+        if float(check.amplification) > 1 + 1e-9:
+            text += (f" dt = {float(np.max(dt)):.3g} s amplifies a damped mode of the closed loop at the first saved "
+                     f"state (RK4 gain {float(check.amplification):.4g} per step; fastest eigenvalue "
+                     f"{complex(check.fastest):.4g} 1/s): dt <= {MARGIN * float(check.stable_dt):.3g} s keeps every "
+                     f"mode stable there (or lower the stiffness or damping that makes it)")
+        else:
+            text += (" The step integrates the closed loop stably at the first saved state: look for torques, "
+                     "forces or parameters that grow without bound, or a singular mass matrix")
+    elif k:
+        text += " A shorter step (or, for a stiff loop, an implicit diffrax solver such as Kvaerno5) may hold it"
+    warnings.warn(text, RolloutWarning, stacklevel=stacklevel)
+    return False

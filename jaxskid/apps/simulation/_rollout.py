@@ -235,6 +235,7 @@ def rollout(
         health: from Python, warn (:class:`RolloutWarning`) where RK4's step does not integrate the closed loop
             at the final states stably, naming the rollouts and a step that would (:mod:`jaxskid.apps.simulation._health`),
             and where a floating base ends below the ground with no contact frame on it; ``None``: with contact.
+            Unless False, also where a rollout's last saved state is not finite, naming when it diverged.
 
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
@@ -274,19 +275,23 @@ def _batch(dyn, x0, p, u, dt, steps: int) -> tuple:
 
 
 def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> Trajectory:
-    """``traj``, after :func:`~jaxskid.apps.simulation._health.warn_if_unstable` on its final states where ``health`` asks
-    for it (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set, and
+    """``traj``, after :func:`~jaxskid.apps.simulation._health.warn_if_not_finite` (unless ``health`` is False),
+    :func:`~jaxskid.apps.simulation._health.warn_if_unstable` on its final states where ``health`` asks for it
+    (``None``: a scene with ground contact), outside any trace, for RK4 with one parameter set, and
     :func:`~jaxskid.apps.simulation._health.warn_if_below_ground` in a scene with ground contact."""
     from ._contact import GroundContact
-    from ._health import warn_if_below_ground, warn_if_unstable
+    from ._health import warn_if_below_ground, warn_if_not_finite, warn_if_unstable
 
     dyn, controller, integrator = static[:3]
+    one_rk4 = classical_rk4(integrator) and not np.ndim(dt) and (params is None or np.ndim(dyn.param_vector(params)) < 2)
+    if health is not False and top_level((traj.x, dt)):
+        if not warn_if_not_finite(dyn, controls, traj, dt, params, one_rk4, stacklevel=4):
+            return traj
     if health is None:
         health = isinstance(controller, GroundContact)
     if health and isinstance(controller, GroundContact) and top_level((traj.x,)):
         warn_if_below_ground(controller, traj.x[..., -1, :], stacklevel=4)
-    if not health or not classical_rk4(integrator) or not top_level((traj.x, dt)) or np.ndim(dt) or \
-            (params is not None and np.ndim(dyn.param_vector(params)) > 1):
+    if not health or not one_rk4 or not top_level((traj.x, dt)):
         return traj
 
     warn_if_unstable(dyn, controls, traj.x[..., -1, :], dt, params, stacklevel=4)
