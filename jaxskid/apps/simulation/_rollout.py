@@ -283,7 +283,8 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
     from ._health import warn_if_below_ground, warn_if_not_finite, warn_if_unstable
 
     dyn, controller, integrator = static[:3]
-    one_rk4 = classical_rk4(integrator) and not np.ndim(dt) and (params is None or np.ndim(dyn.param_vector(params)) < 2)
+    one_set = params is None or np.ndim(dyn.param_vector(params)) < 2
+    one_rk4 = classical_rk4(integrator) and not np.ndim(dt) and one_set
     if health is not False and top_level((traj.x, dt)):
         if not warn_if_not_finite(dyn, controls, traj, dt, params, one_rk4, stacklevel=4):
             return traj
