@@ -303,3 +303,22 @@ def test_a_diverging_rollout_warns_naming_when_and_a_step_that_holds(ur5):
         assert np.isfinite(np.asarray(held.x)).all()
         quiet = jaxskid.rollout(ur5, x0, damped, 2e-3, 300, health=False)  # asked not to look
     assert not np.isfinite(np.asarray(quiet.x)).all()
+
+
+def test_a_complex_step_in_a_parameter_runs_through_a_rollout(ur5):
+    """Real initial state, complex parameters: the states become complex and the time stays real; the derivative
+    of the final state equals central differences of the real rollout."""
+    names = list(ur5.parameters)
+    k, h, e = names.index(names[13]), 1e-30, 1e-6
+    vector = np.array([ur5.default_params()[n] for n in names])
+    x0 = jnp.zeros(12).at[1].set(0.4)
+
+    def final(p):
+        traj = jaxskid.rollout(ur5, x0, lambda t, x: -2.0 * x[6:], 1e-3, 50, params=p)
+        return np.asarray(traj.x[-1]), np.asarray(traj.t)
+
+    bump = np.eye(len(names))[k]
+    stepped, t = final(vector + 1j * h * bump)
+    assert np.iscomplexobj(stepped) and not np.iscomplexobj(t)
+    central = (final(vector + e * bump)[0] - final(vector - e * bump)[0]) / (2 * e)
+    np.testing.assert_allclose(np.imag(stepped) / h, central, rtol=1e-6, atol=1e-6 * np.abs(central).max())

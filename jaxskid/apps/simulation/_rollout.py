@@ -251,6 +251,8 @@ def rollout(
     x0, u, dtype = _inputs(dyn, x0, u)
     p = None if params is None else dyn.param_vector(params, dtype)  # None: the defaults, compiled in
     dt = _step(dt, dtype)
+    if p is not None and p.dtype != x0.dtype:  # complex parameters (a complex step): complex states, real time
+        x0, u = x0.astype(p.dtype), None if u is None else u.astype(p.dtype)
     batch = _batch(dyn, x0, p, u, dt, steps)
     saveat.block(steps)  # every= must divide steps
     index = None if saveat.ts is None else saveat.steps_of_times(dt, steps, dtype)
