@@ -233,9 +233,9 @@ def rollout(
             ``jax.devices()``.
         stabilization, regularization: a constrained robot's (module docstring; :func:`constrained_forward_dynamics`).
         health: from Python, warn (:class:`RolloutWarning`) where RK4's step does not integrate the closed loop
-            at the final states stably, naming the rollouts and a step that would (:mod:`jaxskid.apps.simulation._health`),
-            and where a floating base ends below the ground with no contact frame on it; ``None``: with contact.
-            Unless False, also where a rollout's last saved state is not finite, naming when it diverged.
+            at the final states stably, naming the rollouts and a step that would, and where a floating base ends
+            below the ground with no contact frame on it (``None``: with contact; :mod:`._health`); unless False,
+            also where a rollout's last saved state is not finite, naming when it diverged.
 
     Returns:
         a :class:`Trajectory` of the saved states; by default ``x`` has shape ``(..., steps+1, 2n)``.
@@ -248,11 +248,8 @@ def rollout(
     integrator = _stepping(integrator, stepsize_controller)
     saveat, autodiff = _check_choices(saveat, checkpoint, autodiff, _implicit(integrator))
     controller, u = as_controls(controls)
-    x0, u, dtype = _inputs(dyn, x0, u)
-    p = None if params is None else dyn.param_vector(params, dtype)  # None: the defaults, compiled in
+    x0, u, p, dtype = _with_params(dyn, *_inputs(dyn, x0, u), params)
     dt = _step(dt, dtype)
-    if p is not None and p.dtype != x0.dtype:  # complex parameters (a complex step): complex states, real time
-        x0, u = x0.astype(p.dtype), None if u is None else u.astype(p.dtype)
     batch = _batch(dyn, x0, p, u, dt, steps)
     saveat.block(steps)  # every= must divide steps
     index = None if saveat.ts is None else saveat.steps_of_times(dt, steps, dtype)
@@ -299,6 +296,15 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
 
     warn_if_unstable(dyn, controls, traj.x[..., -1, :], dt, params, stacklevel=4)
     return traj
+
+
+def _with_params(dyn, x0, u, dtype, params):
+    """``(x0, u, p, dtype)``: the parameters as a vector (``None``: the defaults, compiled in); complex ones (a
+    complex step) make the states and torques complex too, ``dtype`` (the time's) staying real."""
+    p = None if params is None else dyn.param_vector(params, dtype)
+    if p is not None and p.dtype != x0.dtype:
+        x0, u = x0.astype(p.dtype), None if u is None else u.astype(p.dtype)
+    return x0, u, p, dtype
 
 
 def _inputs(dyn, x0, u):
