@@ -50,10 +50,10 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, dr
     replace the file's own; for a URDF also a list of link names (default: the leaf links).
     Further keyword options go to the URDF reader (``symbolic_inertia``, ``gravity``, ``mimic``: couple the
     ``<mimic>`` joints, whose positions then follow the independent joints; ``floating_base``: make the root
-    link a free-flyer base body, :attr:`Robot.floating_base`; ``balance_inertia``: make each inertia that no
-    rigid body has isotropic with the same trace, as MuJoCo's ``balanceinertia``, with a warning; a YAML file says so with its own
-    ``floating_base: true`` key). A description without ``mass_inertia`` gives a robot for kinematics
-    (:attr:`Robot.without_inertia`).
+    link a free-flyer base body, :attr:`Robot.floating_base`, which a YAML file says with its own
+    ``floating_base: true`` key; ``balance_inertia``: make each inertia that no rigid body has isotropic with
+    the same trace, as MuJoCo's ``balanceinertia``, with a warning). A description without ``mass_inertia``
+    gives a robot for kinematics (:attr:`Robot.without_inertia`).
     """
     p = Path(path)
     ext = p.suffix.lower()
