@@ -350,7 +350,7 @@ def _check_document(root, coupled: bool = False, fixes: dict | None = None) -> N
         joint_names.add(name)
         kind = el.get("type")
         if kind == "floating":
-            floating.append((where, el.find("parent"), el.find("child")))
+            floating.append((where, el))
         elif kind not in _JOINT_TYPES:
             if kind == "planar":
                 got = f"unsupported type {kind!r} (trees of revolute and prismatic joints, a floating base at the root)"
@@ -381,18 +381,20 @@ def _check_document(root, coupled: bool = False, fixes: dict | None = None) -> N
                 if mimic.get(attr) is not None:
                     _floats(mimic.get(attr), 1, f"{where}.mimic.{attr}")
             mimics.append((where, mimic.get("joint")))
-    _check_floating(floating, root)
+    edges = [(j.find("parent").get("link"), j.find("child").get("link")) for j in root.findall("joint")]
+    _check_floating(floating, edges)
     for where, target in mimics if coupled else ():
         if target not in joint_names:
             raise ModelError(f"expected the name of a joint, got {target!r}", where=f"{where}.mimic.joint")
 
 
-def _check_floating(floating: list, root) -> None:
-    """A ``floating`` joint only as the root link's one joint (``(where, <parent>, <child>)`` each)."""
-    children = [j.find("child").get("link") for j in root.findall("joint") if j.find("child") is not None]
-    for where, parent, _ in floating:
-        link = parent.get("link")
-        if link in children or sum(j.find("parent").get("link") == link for j in root.findall("joint")) > 1:
+def _check_floating(floating: list, edges: list[tuple[str, str]]) -> None:
+    """A ``floating`` joint only as the root link's one joint: ``floating`` holds ``(key path, <joint>)`` of each,
+    ``edges`` every joint's ``(parent link, child link)``."""
+    children = {child for _, child in edges}
+    for where, el in floating:
+        link = el.find("parent").get("link")
+        if link in children or sum(parent == link for parent, _ in edges) > 1:
             raise ModelError("expected one of revolute, continuous, prismatic, fixed, got unsupported type 'floating' "
                              "below the root (a floating joint is read only as the root link's one joint: the "
                              "floating base)", where=f"{where}.type")

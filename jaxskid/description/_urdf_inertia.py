@@ -19,7 +19,9 @@ import sympy as sp
 
 from .._errors import DescriptionWarning, ModelError
 from ..model import _lie as lie
+from ..model._inertia_check import breaks_triangle
 from ..model._robot import Joint, symbol
+from ..model._validate import EIGEN_TOL
 
 
 def exact(x) -> sp.Expr:
@@ -94,19 +96,15 @@ def _parameter_names(link: str, owner: dict[str, str]) -> list[str]:
     return [f"{prefix}_{k}" for k in lie.STANDARD_PARAMETER_NAMES]
 
 
-TRIANGLE_TOL = 1e-6
-"""Relative to the largest principal moment: how far ``I1 + I2 >= I3`` may fail (round-off in a file's digits)."""
-
-
 def balanced(ic: np.ndarray) -> np.ndarray | None:
     """A rotational inertia about the centre of mass that no rigid body has, made isotropic with the same trace
-    (MuJoCo's ``balanceinertia``), for ``load(..., balance_inertia=True)``; None when ``ic`` is physical:
-    positive semi-definite with principal moments that keep the triangle inequality (a planar model's moment
-    about one axis only counts as physical), or when its trace is negative (no balance makes that a body)."""
+    (MuJoCo's ``balanceinertia``), for ``load(..., balance_inertia=True)``; None when ``ic`` is physical by the
+    loader's own rules (positive semi-definite as :func:`~jaxskid.model._validate.check_positive_semidefinite`
+    tests it, the triangle inequality as :func:`~jaxskid.model._inertia_check.breaks_triangle` does), or when
+    its trace is negative (no balance makes that a body)."""
     moments = np.linalg.eigvalsh(0.5 * (ic + ic.T))
-    largest = max(abs(moments).max(), 1e-300)
-    planar = moments[0] >= -1e-12 * largest and moments[1] <= 1e-12 * largest
-    if planar or (moments[0] >= -1e-9 * largest and moments[0] + moments[1] - moments[2] >= -TRIANGLE_TOL * largest):
+    indefinite = moments[0] < -EIGEN_TOL * max(1.0, float(np.abs(ic).max()))
+    if not indefinite and not breaks_triangle(moments):
         return None
     trace = float(moments.sum())
     return None if trace < 0 else np.eye(3) * (trace / 3)

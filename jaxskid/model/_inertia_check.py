@@ -141,6 +141,13 @@ def _composite(robot, origins, screws, inertias, q) -> list[np.ndarray]:
     return composite
 
 
+def breaks_triangle(moments: np.ndarray) -> bool:
+    """Whether sorted principal moments about the centre of mass break ``I1 + I2 >= I3`` beyond round-off (relative
+    1e-6); the moment about one axis only, a planar model's shortcut, does not count."""
+    planar = moments[1] <= 1e-12 * moments[2]
+    return not planar and moments[0] + moments[1] - moments[2] < -1e-6 * max(moments[2], 1e-300)
+
+
 def _warn_inconsistent(m6: np.ndarray, source: str | None, key: str) -> None:
     mass = m6[3, 3]
     rotational = m6[:3, :3]
@@ -154,9 +161,7 @@ def _warn_inconsistent(m6: np.ndarray, source: str | None, key: str) -> None:
     cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
     about_com = rotational + mass * cx @ cx  # I_O = I_C - m c~ c~
     moments = np.sort(np.linalg.eigvalsh(0.5 * (about_com + about_com.T)))
-    slack = moments[0] + moments[1] - moments[2]
-    planar = moments[1] <= 1e-12 * moments[2]  # the moment about one axis only: a planar model's shortcut
-    if slack < -1e-6 * max(moments[2], 1e-300) and not planar:
+    if breaks_triangle(moments):
         warnings.warn(f"{place}: principal moments of inertia {np.round(moments, 9).tolist()} about the centre of "
                       f"mass break the triangle inequality I1 + I2 >= I3; no rigid body has them",
                       PhysicalConsistencyWarning, stacklevel=4)

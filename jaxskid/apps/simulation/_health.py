@@ -148,11 +148,12 @@ def warn_if_below_ground(contact, x_final, stacklevel: int = 3) -> np.ndarray:
     return below
 
 
-def warn_if_not_finite(dyn, controls, traj, dt, params=None, analyse: bool = True, stacklevel: int = 3) -> bool:
+def warn_if_not_finite(dyn, controls, traj, dt, params=None, analyse=lambda: True, stacklevel: int = 3) -> bool:
     """One :class:`RolloutWarning` where a rollout's last saved state is not finite (NaN and inf do not leave a
-    rollout once they enter it): the rollouts, when it first went wrong and, where ``analyse`` (RK4, one step and
-    one parameter set), whether the step integrates the closed loop at the first saved state stably, and the step
-    that would. Returns whether every rollout ended finite (one reduction on the device when they did)."""
+    rollout once they enter it): the rollouts, when it first went wrong and, where ``analyse()`` (RK4, one step and
+    one parameter set; asked only then), whether the step integrates the closed loop at the first saved state
+    stably, and the step that would. Returns whether every rollout ended finite (one reduction on the device when
+    they did)."""
     if bool(jnp.all(jnp.isfinite(traj.x[..., -1, :]))):
         return True
     x = np.asarray(traj.x)
@@ -168,7 +169,7 @@ def warn_if_not_finite(dyn, controls, traj, dt, params=None, analyse: bool = Tru
     since = f"from t = {t:.4g} s (saved state {k})" if k else "at every saved state"
     text = f"rollout: the state of {which} is not finite {since} on: it diverged."
     start = x[first][0]
-    if analyse and k and np.isfinite(start).all():
+    if k and np.isfinite(start).all() and analyse():
         check = step_stability(dyn, controls, jnp.asarray(start), float(np.max(dt)), params)
         if float(check.amplification) > 1 + 1e-9:
             text += (f" dt = {float(np.max(dt)):.3g} s amplifies a damped mode of the closed loop at the first saved "

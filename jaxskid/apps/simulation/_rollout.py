@@ -282,8 +282,11 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
     from ._health import warn_if_below_ground, warn_if_not_finite, warn_if_unstable
 
     dyn, controller, integrator = static[:3]
-    one_set = params is None or np.ndim(dyn.param_vector(params)) < 2
-    one_rk4 = classical_rk4(integrator) and not np.ndim(dt) and one_set
+
+    def one_rk4() -> bool:  # the step check's scope: RK4, one step, one parameter set
+        one_set = params is None or np.ndim(dyn.param_vector(params)) < 2
+        return classical_rk4(integrator) and not np.ndim(dt) and one_set
+
     if health is not False and top_level((traj.x, dt)):
         if not warn_if_not_finite(dyn, controls, traj, dt, params, one_rk4, stacklevel=4):
             return traj
@@ -291,7 +294,7 @@ def _checked(traj: Trajectory, static: tuple, controls, dt, params, health) -> T
         health = isinstance(controller, GroundContact)
     if health and isinstance(controller, GroundContact) and top_level((traj.x,)):
         warn_if_below_ground(controller, traj.x[..., -1, :], stacklevel=4)
-    if not health or not one_rk4 or not top_level((traj.x, dt)):
+    if not health or not top_level((traj.x, dt)) or not one_rk4():
         return traj
 
     warn_if_unstable(dyn, controls, traj.x[..., -1, :], dt, params, stacklevel=4)
