@@ -148,13 +148,20 @@ def warn_if_below_ground(contact, x_final, stacklevel: int = 3) -> np.ndarray:
     return below
 
 
+@jax.jit
+def _ended_finite(x):
+    """Whether every rollout's last saved state is finite: one compiled reduction (three eager operations made a
+    hundred-step rollout of the Panda half as slow again, ``benchmarks/rollouts.py``, batch 1)."""
+    return jnp.all(jnp.isfinite(x[..., -1, :]))
+
+
 def warn_if_not_finite(dyn, controls, traj, dt, params=None, analyse=lambda: True, stacklevel: int = 3) -> bool:
     """One :class:`RolloutWarning` where a rollout's last saved state is not finite (NaN and inf do not leave a
     rollout once they enter it): the rollouts, when it first went wrong and, where ``analyse()`` (RK4, one step and
     one parameter set; asked only then), whether the step integrates the closed loop at the first saved state
     stably, and the step that would. Returns whether every rollout ended finite (one reduction on the device when
     they did)."""
-    if bool(jnp.all(jnp.isfinite(traj.x[..., -1, :]))):
+    if bool(_ended_finite(traj.x)):
         return True
     x = np.asarray(traj.x)
     bad = ~np.isfinite(x).all(-1)  # (..., n_saved)
