@@ -8,7 +8,7 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
-from ._errors import ModelError, RequestError
+from ._errors import ModelError, RequestError, unknown_names
 from .codegen import Layout
 from .codegen._c import emit_c, native_block, native_sources
 from .codegen._common import quantity_metadata
@@ -25,6 +25,7 @@ from .description._end_effectors import with_end_effectors
 from .description._yaml_skidy import check_dialect
 from .model._inertia_check import check_inertias
 from .model._robot import Robot
+from .model._validate import describe_value
 from .model._standard import body_standard_map
 from .runtime._checks import checks_mode
 from .runtime._deferred import Deferred
@@ -32,6 +33,25 @@ from .runtime._dynamics import Dynamics
 from .runtime._cuda import enabled as cuda_enabled
 from .runtime._ffi import enabled as native_enabled
 from .runtime._native import NativeDynamics
+
+
+_URDF_SWITCHES = ("symbolic_inertia", "mimic", "floating_base", "balance_inertia")
+_URDF_OPTIONS = (*_URDF_SWITCHES, "gravity")
+
+
+def _check_options(source: str, ext: str, lock, drives, options: Mapping) -> None:
+    """:func:`load`'s keywords, before the file is read: ``lock`` a mapping of joint names, the switches
+    ``True`` or ``False`` (not a truthy string), the further keywords those of the URDF reader."""
+    if lock is not None and not (isinstance(lock, Mapping) and all(isinstance(k, str) for k in lock)):
+        raise ModelError(f"expected a mapping joint name -> position, got {describe_value(lock)}", where="lock",
+                         source=source)
+    unknown = [k for k in options if k not in _URDF_OPTIONS]
+    if unknown and ext == ".urdf":
+        named, listed = unknown_names(unknown, _URDF_OPTIONS)
+        raise ModelError(f"unknown option {named}; a URDF file takes {listed}", source=source)
+    for name, value in (("drives", drives), *((k, v) for k, v in options.items() if k in _URDF_SWITCHES)):
+        if not isinstance(value, bool):
+            raise ModelError(f"expected true or false, got {describe_value(value)}", where=name, source=source)
 
 
 def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, drives: bool = False,
@@ -58,6 +78,7 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, dr
     p = Path(path)
     ext = p.suffix.lower()
     check_dialect(dialect)
+    _check_options(str(p), ext, lock, drives, options)
     placed = isinstance(end_effectors, Mapping)
     if ext == ".urdf":
         from .description._urdf import read_urdf

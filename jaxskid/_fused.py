@@ -11,8 +11,13 @@ classic one: Cody & Waite argument reduction
 ``x = n pi/2 + r`` with ``pi/2`` split into pieces of 33 significant bits, so that ``n * piece`` is exact
 for ``|n| < 2**20`` (``|x| < 1.6e6`` rad), and the minimax polynomials of Cephes' ``sin.c`` on
 [-pi/4, pi/4]. Measured against mpmath (``tests/test_trig.py``): within about one ulp of 1.0 in float64
-for ``|x| <= 1e5``, 1.5e-7 in float32 for ``|x| <= 10``; beyond ``|x| ~ 1.6e6`` the reduction loses bits
-gradually; ``inf`` and ``nan`` give ``nan``. Derivatives are defined exactly (``d sin = cos dx``).
+for ``|x| <= 1e5``, 1.5e-7 in float32 for ``|x| <= 1e4``. Beyond ``|x| ~ 1.6e6`` (float32: ``1e5``) the
+reduction loses bits gradually, and the reduced argument is clipped to [-pi/4, pi/4], so that the values stay
+within [-1, 1] (unclipped, the polynomials of an unreduced argument gave ``sin(1e9) = -117115`` in float32);
+the native kernels take libm's values there, and XLA's functions (``jnp.sin``) reduce exactly. Taking those
+for far angles here cost every angle their evaluation (a Panda rollout 1.5x slower). ``inf`` and ``nan`` give
+``nan``.
+Derivatives are defined exactly (``d sin = cos dx``).
 This serves CPU programs only. On a GPU (an H100) the multiply-adds were the slower choice, by far for
 the G1's mass matrix (``benchmarks/scaling.py --trig fused`` against the default); there a program uses
 XLA's functions (``lax.platform_dependent``, resolved when the program is lowered for its platform).
@@ -64,6 +69,7 @@ def _sincos(x):
     pio2, cs, cc = (_PIO2_F32, _SIN_F32, _COS_F32) if single else (_PIO2, _SIN, _COS)
     n = jnp.round(x * 0.63661977236758134308)
     r = ((x - n * pio2[0]) - n * pio2[1]) - n * pio2[2]
+    r = jnp.clip(r, -0.7854, 0.7854)  # beyond the exact reduction r can be anything: keep the polynomials bounded
     z = r * r
     ps, pc = cs[0], cc[0]
     for c in cs[1:]:

@@ -79,6 +79,12 @@ CASES = {
     # expressions
     "unknown_function.yaml": ("body_ref_config[0].translation[2]", "unknown function 'height' in 'height(l1)'"),
     "code_injection.yaml": ("body_ref_config[0].translation[2]", "expected an arithmetic expression of numbers and parameter names"),
+    "unsupported_function.yaml": ("mass_inertia[0].mass", "unsupported function 'Max' in 'Max(m1, 1)'; expressions"),
+    "unsupported_term.yaml": ("gravity[2]", "unsupported term 'Integral' in '-Integral(g, g)'"),
+    "power_tower.yaml": ("mass_inertia[0].mass", "got '10**10**10' (beyond the range of a double)"),
+    "exponential_tower.yaml": ("mass_inertia[1].mass", "got 'exp(exp(exp(100)))' (beyond the range of a double)"),
+    "not_real_at_defaults.yaml": ("mass_inertia[0]", "expected finite real values at the parameters' defaults"),
+    "subnormal_mass.yaml": ("mass_inertia[1].mass", "expected a mass of 0 or at least 1e-30 (check the units)"),
     # syntax, empty and binary files
     "broken_indentation.yaml": (None, "line 4, column 2: invalid YAML"),
     "broken_trailing_comma.json": (None, "line 3, column 44: invalid JSON"),
@@ -88,6 +94,8 @@ CASES = {
     "binary.yaml": (None, "expected a text file (YAML or JSON), found binary data"),
     "binary.json": (None, "expected a text file (YAML or JSON), found binary data"),
     "latin1.yaml": (None, "expected UTF-8 text, found an invalid byte at offset 10"),
+    "nested_too_deep.yaml": (None, "nested too deeply to read"),
+    "tag_not_a_value.yaml": (None, "invalid YAML: a value its tag cannot be made of"),
     # ---- URDF
     "urdf_inertial_without_mass.urdf": ("link[name=l2].inertial.mass", 'expected a <mass value="..."/> element'),
     "urdf_inertial_without_inertia.urdf": ("link[name=l1].inertial.inertia", "expected an <inertia ixx="),
@@ -109,6 +117,12 @@ CASES = {
     "urdf_origin_four_values.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '0 0 0.1 0'"),
     "urdf_xacro_expression.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '${length} 0 0'"),
     "urdf_limit_not_a_number.urdf": ("joint[name=j1].limit.effort", "expected a number, got 'lots'"),
+    "urdf_number_with_underscore.urdf": ("link[name=arm].inertial.mass", "expected a number, got '1_0'"),
+    "urdf_com_beyond_any_unit.urdf": ("link[name=arm].inertial.origin.xyz", "expected magnitudes of at most 1e+30"),
+    "urdf_rod_along_its_axis.urdf": ("link 'rod' <inertial>", "('rod': no mass off the axis and no moment of inertia"),
+    "urdf_coaxial_joints_massless_link.urdf": (None, "the mass matrix is singular in every configuration tried: "
+                                                     "'j0' and 'j1' can move together"),
+    "urdf_massless_floating_base.urdf": (None, "singular in every configuration tried: the floating base and 'j1'"),
     "sdf_root.urdf": ("robot", "expected the root element <robot>, got <sdf>"),
     "empty.urdf": (None, "expected a URDF (XML) document, got an empty file"),
     "binary.urdf": (None, "expected a URDF (XML) text file, got binary data"),

@@ -40,7 +40,7 @@ from ..equations._derive import Equations
 from ._common import Program, Layout, NumberTweaks, statements, unravel
 from ._printing import FastArithmetic
 
-GENERATOR_VERSION = "24"
+GENERATOR_VERSION = "25"
 """Changes whenever the generated module changes, so that cached modules of an older generator are not reused."""
 
 

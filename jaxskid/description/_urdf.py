@@ -31,9 +31,9 @@ Conventions, chosen to match Pinocchio's ``buildModelFromUrdf`` (``pinocchio/par
 
 from __future__ import annotations
 
-import io
 import math
 import os
+import re
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
@@ -47,16 +47,20 @@ from ..model._fixed import lock_joint, merge_fixed
 from ..model._drive import Drive, drive_parameter_names
 from ..model._mimic import Mimic, follow_locks, resolve
 from ..model._robot import Joint, Robot
-from ..model._validate import check_mass, check_positive_semidefinite
+from ..model._validate import LARGEST, check_mass, check_positive_semidefinite
 from ._keymap import KeyMap
 from ._urdf_inertia import (balanced, base_parameters, exact, inertial_parameters, link_inertia, put_balanced,
                              root_inertia, rotation_translation)
 from ._urdf_limits import NUMERIC_JOINT_ATTRIBUTES, joint_limits
 from ._urdf_tree import walk_tree
+from ._urdf_xml import dynamics_only, load_yourdfpy, parse_xml, read_bytes
 
 _JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed"}
 _SUPPORTED = ", ".join(_JOINT_TYPES)
 _INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+_XML_SPACE = " \t\r\n"
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(inf|infinity|nan)", re.IGNORECASE)
+"""A number as urdfdom reads it: ASCII digits (no ``1_0``, no other scripts' digits), separated by XML space."""
 
 
 def read_urdf(
@@ -114,10 +118,11 @@ def read_urdf(
 
 def _read(source, lock, symbolic_inertia, gravity, end_effectors, drives, mimic, floating_base,
           balance_inertia=False) -> Robot:
-    data = _read_bytes(source)
+    data = read_bytes(source)
     fixes = {} if balance_inertia else None
-    _check_document(_parse_xml(data), mimic, fixes)
-    urdf = _load_yourdfpy(data).robot
+    document = parse_xml(data)
+    _check_document(document, mimic, fixes)
+    urdf = load_yourdfpy(dynamics_only(document)).robot
     order, root_link, floating_root = walk_tree(urdf.links, urdf.joints)
     if floating_root and floating_base is False:  # a value other than a bool stays, to be refused by name
         floating_base = True
@@ -261,58 +266,6 @@ def _check_end_effectors(end_effectors, links) -> tuple[str, ...] | None:
     return end_effectors
 
 
-# ---------------------------------------------------------------------------------------------- reading
-
-
-def _read_bytes(source: str) -> bytes:
-    try:
-        with open(source, "rb") as fh:
-            data = fh.read()
-    except FileNotFoundError:
-        raise ModelError("expected an existing URDF file, got no such file") from None
-    except IsADirectoryError:
-        raise ModelError("expected a URDF file, got a directory") from None
-    except OSError as exc:
-        raise ModelError(f"expected a readable URDF file, got {exc.strerror or exc}") from None
-    if not data.strip():
-        raise ModelError("expected a URDF (XML) document, got an empty file")
-    if b"\x00" in data and not data.startswith((b"\xff\xfe", b"\xfe\xff")):  # NUL bytes, no UTF-16 mark
-        raise ModelError("expected a URDF (XML) text file, got binary data")
-    return data
-
-
-def _parse_xml(data: bytes):
-    from lxml import etree
-
-    parser = etree.XMLParser(remove_blank_text=True, resolve_entities=False, no_network=True)
-    try:
-        root = etree.fromstring(data, parser)
-    except etree.XMLSyntaxError as exc:
-        raise ModelError(f"expected well-formed XML, got a syntax error at line {exc.lineno}: {exc.msg}") from None
-    except ValueError as exc:  # e.g. an undecodable encoding declaration
-        raise ModelError(f"expected well-formed XML, got {exc}") from None
-    tag = etree.QName(root).localname if isinstance(root.tag, str) else str(root.tag)
-    if tag != "robot":
-        raise ModelError(f"expected the root element <robot>, got <{tag}>", where="robot")
-    return root
-
-
-def _load_yourdfpy(data: bytes):
-    import yourdfpy
-
-    try:
-        return yourdfpy.URDF.load(
-            io.BytesIO(data),
-            build_scene_graph=False,
-            build_collision_scene_graph=False,
-            load_meshes=False,
-            load_collision_meshes=False,
-        )
-    except Exception as exc:  # noqa: BLE001 - yourdfpy raises bare KeyError/ValueError/... on what we do not check
-        raise ModelError(f"expected a URDF that yourdfpy can read, got {type(exc).__name__}: {exc}",
-                         where="robot") from None
-
-
 # ---------------------------------------------------------------------------------------------- checking
 
 
@@ -373,8 +326,8 @@ def _check_document(root, coupled: bool = False, fixes: dict | None = None) -> N
         for tag, attrs in NUMERIC_JOINT_ATTRIBUTES.items():
             sub = el.find(tag)
             for attr in attrs if sub is not None else ():
-                if sub.get(attr) is not None:  # +-inf is a usable limit; nan and words are not
-                    _floats(sub.get(attr), 1, f"{where}.{tag}.{attr}", infinite=True)
+                if sub.get(attr) is not None:  # +-inf is a usable limit (not friction); nan and words are not
+                    _floats(sub.get(attr), 1, f"{where}.{tag}.{attr}", infinite=tag != "dynamics")
         mimic = el.find("mimic")
         if mimic is not None:
             for attr in ("multiplier", "offset"):
@@ -436,16 +389,16 @@ def _floats(text: str | None, n: int, where: str, infinite: bool = False) -> lis
     what = "a number" if n == 1 else f"{n} numbers"
     if text is None:
         raise ModelError(f"expected {what}, got nothing", where=where)
-    parts = text.split()
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        values = None
+    stripped = text.strip(_XML_SPACE)
+    parts = re.split(f"[{_XML_SPACE}]+", stripped) if stripped else []
+    values = [float(p) for p in parts] if all(_NUMBER.fullmatch(p) for p in parts) else None
     if values is None or len(values) != n:
         raise ModelError(f"expected {what}, got {text!r}", where=where)
     if not all(math.isfinite(v) or (infinite and math.isinf(v)) for v in values):
         wanted = ("a number, not nan" if infinite else "a finite number") if n == 1 else "finite numbers"
         raise ModelError(f"expected {wanted}, got {text!r}", where=where)
+    if any(LARGEST < abs(v) < math.inf for v in values):  # products of such numbers overflow later
+        raise ModelError(f"expected magnitudes of at most {LARGEST:g} (check the units), got {text!r}", where=where)
     return values
 
 

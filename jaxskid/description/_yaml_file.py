@@ -1,8 +1,9 @@
 """Reading a YAML or JSON description file into a mapping: the file's syntax, nothing of its meaning.
 
 Errors name the file (and the line and column of a syntax error): an unknown extension, unreadable or
-binary bytes, text that is not UTF-8, an empty file, invalid YAML or JSON, and a key given twice in one
-mapping (which PyYAML and ``json`` would otherwise resolve silently, keeping the last value).
+binary bytes, text that is not UTF-8, an empty file, invalid YAML or JSON (a value an explicit tag such as
+``!!int`` cannot be made of, nesting too deep to read), and a key given twice in one mapping (which PyYAML and
+``json`` would otherwise resolve silently, keeping the last value).
 """
 
 from __future__ import annotations
@@ -55,6 +56,12 @@ def _parse(text: str, is_json: bool):
         raise ModelError(f"{where}invalid YAML: {exc.problem or exc.context}") from None
     except yaml.YAMLError as exc:
         raise ModelError(f"invalid YAML: {exc}") from None
+    except ModelError:  # a duplicate JSON key (_json_object)
+        raise
+    except RecursionError:
+        raise ModelError("expected a description, got lists or mappings nested too deeply to read") from None
+    except (ValueError, TypeError, AttributeError, OverflowError) as exc:  # a value PyYAML's tag cannot construct
+        raise ModelError(f"invalid YAML: a value its tag cannot be made of ({type(exc).__name__}: {exc})") from None
     if data is None:
         raise ModelError("the file is empty; expected a robot description")
     return data

@@ -31,6 +31,7 @@ from ._validate import symbol
 
 _RANDOM_CONFIGURATIONS = 3
 _TOLERANCE = 1e-12  # relative to the robot's largest inertia entry
+_SINGULAR = 1e-10  # smallest eigenvalue of the mass matrix scaled to a unit diagonal
 
 
 def _numeric(matrix, values: dict) -> np.ndarray | None:
@@ -102,8 +103,9 @@ def check_inertias(robot, source: str | None = None, where: Callable[[int], str]
         moved = [joints[k].link for k in _subtree(robot, i)]
         raise ModelError(
             f"joint {joints[i].name!r} moves bodies with no inertia along its axis ({', '.join(map(repr, moved))}: "
-            f"zero mass and zero inertia), so the mass matrix is singular and forward dynamics undefined; give "
-            f"them mass and inertia, or fix the joint (load(..., lock={{{joints[i].name!r}: 0.0}}))",
+            f"no mass off the axis and no moment of inertia about it), so the mass matrix is singular and forward "
+            f"dynamics undefined; give them mass and inertia, or fix the joint "
+            f"(load(..., lock={{{joints[i].name!r}: 0.0}}))",
             where=where(i), source=source)
     if base is not None:
         total = base + sum((_adjoint(_inverse(origins[i])).T @ composite[i] @ _adjoint(_inverse(origins[i]))
@@ -111,6 +113,63 @@ def check_inertias(robot, source: str | None = None, where: Callable[[int], str]
         if np.linalg.eigvalsh(total)[0] <= _TOLERANCE * scale:
             raise ModelError("the floating base and the bodies it carries have no mass or inertia in some "
                              "direction; the mass matrix is singular", where="base_inertia", source=source)
+    _check_mass_matrix(robot, (origins, screws, inertias, base), configurations, source)
+
+
+def _check_mass_matrix(robot, numbers, configurations, source) -> None:
+    """Raise :class:`ModelError` where the mass matrix is singular at every configuration tried although each
+    joint carries inertia along its own axis: joints that move together without moving any mass (two coaxial
+    joints with a massless link between them; a massless floating base turned against its first joint).
+    ``numbers``: the bodies' ``(origins, screws, inertias, base inertia or None)``."""
+    coupling = [(k, float(a)) for k, a, _ in robot.coupling()] if all(
+        sp.sympify(a).is_number for _, a, _ in robot.coupling()) else None
+    if coupling is None or not coupling and numbers[3] is None:
+        return  # a mimic multiplier without a number, or nothing moves
+    null = None
+    for q in configurations:
+        m = _mass_matrix(robot, *numbers, coupling, q)
+        d = np.sqrt(np.diag(m))
+        if not (d > 0).all() or not np.isfinite(m).all():  # below the per-joint check's tolerance: underflow
+            null = (~(d > 0)).astype(float)
+            continue
+        values, vectors = np.linalg.eigh(m / np.outer(d, d))  # scaled to a unit diagonal: no units left
+        if values[0] > _SINGULAR:
+            return
+        null = vectors[:, 0] / d
+    names = (["the floating base"] * 6 if numbers[3] is not None else []) + list(robot.joint_names)
+    null = np.abs(null) / np.abs(null).max()
+    moved = list(dict.fromkeys(n if n.startswith("the ") else repr(n) for n, x in zip(names, null) if x > 0.01))
+    raise ModelError(
+        f"the mass matrix is singular in every configuration tried: {' and '.join(moved)} can move together "
+        "without moving any mass or inertia (joints on one axis with massless links between them, or a base "
+        "without inertia turned against its first joints); give the links between them mass and inertia, or "
+        "fix one of the joints (load(..., lock={name: 0.0}))", source=source)
+
+
+def _mass_matrix(robot, origins, screws, inertias, base, coupling, q) -> np.ndarray:
+    """The joint-space mass matrix at body positions ``q`` (composite-rigid-body algorithm, Featherstone 2008,
+    sec. 6.2), the floating base's six coordinates first (in its body frame), mimic joints folded into the
+    joints they follow by ``coupling`` (per body: coordinate, multiplier)."""
+    joints, base6 = robot.joints, 6 if base is not None else 0
+    composite = _composite(robot, origins, screws, inertias, q)
+    up = [_adjoint(_inverse(origins[c] @ _screw_pose(screws[c], q[c]))).T for c in range(len(joints))]
+    g = np.zeros((base6 + len(joints), base6 + robot.n_dof))  # body (and base) velocities from coordinates
+    g[:base6, :base6] = np.eye(base6)
+    for i, (k, a) in enumerate(coupling):
+        g[base6 + i, base6 + k] = a
+    full = np.zeros((base6 + len(joints),) * 2)
+    if base6:
+        full[:6, :6] = base + sum((up[c] @ composite[c] @ up[c].T for c, j in enumerate(joints) if j.parent < 0),
+                                  np.zeros((6, 6)))
+    for j in range(len(joints)):
+        f, k = composite[j] @ screws[j], j
+        full[base6 + j, base6 + j] = screws[j] @ f
+        while joints[k].parent >= 0:
+            f, k = up[k] @ f, joints[k].parent
+            full[base6 + k, base6 + j] = full[base6 + j, base6 + k] = screws[k] @ f
+        if base6:
+            full[:6, base6 + j] = full[base6 + j, :6] = up[k] @ f
+    return g.T @ full @ g
 
 
 def _inverse(pose: np.ndarray) -> np.ndarray:

@@ -120,9 +120,9 @@ class Robot:
         joints = [_normalize_joint(j, i) for i, j in enumerate(joints)]
         frames = [_normalize_frame(f, k) for k, f in enumerate(frames)]
         check_parents([j.parent for j in joints])
-        gravity = list(gravity)
-        if len(gravity) != 3:
-            raise ModelError(f"expected 3 values, got {len(gravity)}", where="gravity")
+        if isinstance(gravity, (str, bytes, Mapping)) or not isinstance(gravity, Iterable) or len(
+                gravity := list(gravity)) != 3:
+            raise ModelError(f"expected 3 values, got {describe_value(gravity)}", where="gravity")
         gravity = tuple(to_expr(g, where=f"gravity[{k}]") for k, g in enumerate(gravity))
         clean = check_defaults(defaults or {})
         check_model(joints, frames, gravity, end_effectors, clean, base)

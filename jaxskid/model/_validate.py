@@ -8,14 +8,15 @@ numbers and expressions), check only the syntax and the forms that never reach t
 
 The rules and their tolerances:
 
-* a scalar is a finite real number, or an arithmetic expression of numbers, parameter names and SymPy's
-  functions (no attribute access, no unknown functions), of magnitude at most :data:`LARGEST`;
+* a scalar is a finite real number, or an arithmetic expression of numbers, parameter names and the
+  elementary functions every code generator prints (:mod:`jaxskid.model._scalars`; no attribute access),
+  of magnitude at most :data:`LARGEST`;
 * a revolute screw ``(omega, v)`` has a unit ``omega`` and ``omega . v = 0`` (no pitch); a prismatic one
   has ``omega = 0`` and a unit ``v``, within :data:`TOL`;
 * a pose is ``[[R, p], [0, 1]]`` with ``R^T R = 1`` within :data:`TOL` and ``det R = +1``;
 * a mass-inertia matrix is symmetric, of the form ``[[I_o, m c~], [-m c~, m 1]]`` (within
-  :data:`SYMMETRY_TOL`, relative), with ``m >= 0`` and a positive semi-definite rotational inertia about
-  the centre of mass (eigenvalues above ``-EIGEN_TOL`` times the inertia's scale);
+  :data:`SYMMETRY_TOL`, relative), with ``m = 0`` or ``m >=`` :data:`SMALLEST` and a positive semi-definite
+  rotational inertia about the centre of mass (eigenvalues above ``-EIGEN_TOL`` times the inertia's scale);
 * a drive belongs to a moving joint, and its armature, viscous and Coulomb friction are not negative;
 * parents come before their children and form no cycle; names are unique.
 
@@ -31,9 +32,9 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
-from sympy.core.function import AppliedUndef
 
 from .._errors import ModelError
+from ._scalars import ALLOWED, float_value, unsupported
 
 TOL = 1e-6
 """Unit axes and quaternions, orthonormal rotations, ``omega . v`` of a revolute screw."""
@@ -43,6 +44,8 @@ EIGEN_TOL = 1e-9
 """Relative to the inertia's scale: how negative an eigenvalue of a rotational inertia may be (round-off)."""
 LARGEST = 1e30
 """Larger numbers are mistakes in any unit system, and overflow the numeric checks."""
+SMALLEST = 1e-30
+"""Smaller nonzero masses are mistakes in any unit system; their products underflow (in float32 first)."""
 
 _ARITHMETIC = re.compile(r"[A-Za-z0-9_+\-*/^().,\s]*")
 _DECIMAL = re.compile(r"(\d+\.\d*|\.\d+)([eE][+-]?\d+)?")
@@ -104,8 +107,14 @@ def _parse(text: str, where: str):
     if not text.strip() or not _ARITHMETIC.fullmatch(text) or "__" in text or "." in _DECIMAL.sub("", text):
         raise ModelError(f"expected an arithmetic expression of numbers and parameter names, got {text!r}",
                          where=where)
-    try:
+    try:  # unevaluated first: SymPy computes 10**10**10 exactly while it parses (module _scalars)
+        raw = sp.sympify(text, locals=_SYMPIFY_LOCALS, evaluate=False)
+        _check_parts(raw, text, where)
+        if isinstance(raw, sp.Basic) and float_value(raw) == math.inf:
+            raise ModelError(f"expected a finite real value, got {text!r} (beyond the range of a double)", where=where)
         expr = sp.sympify(text, locals=_SYMPIFY_LOCALS)
+    except ModelError:
+        raise
     except Exception as exc:  # noqa: BLE001 - sympify fails in many ways on malformed text
         raise ModelError(f"cannot parse {text!r} as an expression ({type(exc).__name__})", where=where) from None
     if isinstance(expr, sp.Basic):
@@ -123,22 +132,31 @@ def _realify(expr):
     return expr.xreplace(subs) if subs else expr
 
 
+def _check_parts(expr, value, where: str) -> None:
+    bad = unsupported(expr) if isinstance(expr, sp.Basic) else None
+    if bad is not None and bad.startswith("imaginary"):
+        raise ModelError(f"expected a real value, got {value!r}", where=where)
+    if bad is not None:
+        kind = "" if bad.startswith("unknown") else "unsupported "
+        raise ModelError(f"{kind}{bad} in {value!r}; expressions may use {ALLOWED}", where=where)
+
+
 def _check_scalar(expr: sp.Expr, value, where: str) -> None:
     if expr.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
         raise ModelError(f"expected a finite value, got {value!r}", where=where)
-    functions = sorted(str(f.func) for f in expr.atoms(AppliedUndef))
-    if functions:
-        raise ModelError(f"unknown function {functions[0]!r} in {value!r}", where=where)
+    _check_parts(expr, value, where)
     if any(s.name.lower() in ("inf", "infinity", "nan") for s in expr.free_symbols):
         raise ModelError(f"expected a finite value, got {value!r}", where=where)
     if expr.free_symbols:
         return
     if expr.is_extended_real is False:
         raise ModelError(f"expected a real value, got {value!r}", where=where)
-    try:
-        x = float(expr)
-    except (TypeError, ValueError, OverflowError):
-        x = math.inf
+    x = float_value(expr)
+    if x is None or math.isfinite(x):  # None: a part float_value does not evaluate
+        try:
+            x = float(expr)
+        except (TypeError, ValueError, OverflowError):
+            x = math.inf
     if not math.isfinite(x):
         raise ModelError(f"expected a finite real value, got {value!r}", where=where)
     if abs(x) > LARGEST:
@@ -146,8 +164,12 @@ def _check_scalar(expr: sp.Expr, value, where: str) -> None:
 
 
 def numeric(expr, values: Mapping) -> float | None:
-    """The value of ``expr`` with ``values`` (symbol -> number) put in, or None if a symbol has none."""
+    """The value of ``expr`` with ``values`` (symbol -> number) put in, or None if a symbol has none; ``inf`` or
+    ``nan`` where it overflows or is not a real number."""
     e = sp.sympify(expr)
+    x = float_value(e, values)
+    if x is not None and not math.isfinite(x):
+        return x  # inf where a part overflows (SymPy would compute its digits), nan where it is not real
     if e.free_symbols:
         e = sp.sympify(e.xreplace(values))
         if e.free_symbols:
@@ -172,6 +194,9 @@ def check_mass(mass: float | None, where: str, entry: str = "") -> None:
     """A non-negative mass (None: unknown, not checked); ``entry`` names where it sits in a matrix."""
     if mass is not None and mass < 0:
         raise ModelError(f"expected a non-negative mass{entry}, got {mass:.6g}", where=where)
+    if mass is not None and 0 < mass < SMALLEST:
+        raise ModelError(f"expected a mass{entry} of 0 or at least {SMALLEST:g} (check the units), got {mass:.6g}",
+                         where=where)
 
 
 def check_positive_semidefinite(i3: np.ndarray, scale: float, where: str, what: str, hint: str = "") -> None:
@@ -295,8 +320,11 @@ def check_model(joints: Sequence, frames: Sequence, gravity: Sequence, end_effec
     """Every invariant of a model, on normalised joints and frames (fixed joints not yet merged)."""
     _check_names(joints, frames, end_effectors, base)
     values = {symbol(k): v for k, v in defaults.items()}
+    _check_real(gravity, values, "gravity")
     for i, j in enumerate(joints):
         where = f"joints[{i}]"
+        for part in ("origin", "screw", "inertia"):
+            _check_real(getattr(j, part), values, f"{where}.{part}")
         check_pose(j.origin, values, f"{where}.origin")  # first: a spatial description's screws depend on it
         if j.type != "fixed":
             check_screw(j.type, j.screw, values, f"{where}.screw")
@@ -307,6 +335,15 @@ def check_model(joints: Sequence, frames: Sequence, gravity: Sequence, end_effec
         if not -1 <= f.body < len(joints):
             raise ModelError(f"expected a body index in -1..{len(joints) - 1}, got {f.body}", where=f"frames[{k}].body")
         check_pose(f.offset, values, f"frames[{k}].offset")
+
+
+def _check_real(entries, values: Mapping, where: str) -> None:
+    """Every entry whose parameters have defaults is a finite real number there (``sqrt(-m)`` with ``m = 1`` is
+    not: the equations would compute nan)."""
+    for e in entries:
+        x = numeric(e, values)
+        if x is not None and not math.isfinite(x):
+            raise ModelError(f"expected finite real values at the parameters' defaults, got {e} = {x}", where=where)
 
 
 def check_drive(kind: str, drive, values: Mapping, where: str) -> None:

@@ -2,9 +2,11 @@
    method of jaxskid._fused and c/ffi_trig.h: x = n pi/2 + r, |r| <= pi/4 (Cody & Waite's three-part pi/2 by
    fused multiply-adds), then Cephes' minimax polynomials, chosen and signed by the quadrant. No branch: the
    angles' polynomials interleave, where the library's sin and cos each branch to a slow reduction. Within 2 ulp
-   for |x| <= 1e5; inf and nan give nan. */
+   for |x| < 1e5; beyond, and for inf and nan, the library's sin and cos. */
 JAXSKID_FN double jaxskid_trig(double x, long long quadrant)
 {
+    if (!(fabs(x) < 1e5)) /* beyond the exact reduction: the library's value, as the CPU kernels take libm's */
+        return quadrant ? cos(x) : sin(x);
     const double n = rint(x * 0.63661977236758134308);
     double r = fma(-n, 1.57079632673412561417e+00, x);
     r = fma(-n, 6.07710050630396597660e-11, r);

@@ -1,0 +1,105 @@
+"""What :func:`jaxskid.load` checks beyond each value: the mass matrix at the default parameters (singular in every
+configuration tried is an error naming the joints that move together without moving mass), the keywords it is
+given, and what of a URDF it reads (the links' inertial and the joints, not their visuals)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import helpers
+import jaxskid
+from jaxskid import ModelError
+from jaxskid.model import _inertia_check
+
+DATA = Path(__file__).parent / "data"
+
+
+def _load_check_numbers(monkeypatch, path, **kw):
+    """The numbers the mass-matrix check of ``load`` works on: ``(robot, numbers, coupling)``."""
+    seen = {}
+
+    def spy(robot, numbers, configurations, source):
+        seen.update(robot=robot, numbers=numbers)
+
+    monkeypatch.setattr(_inertia_check, "_check_mass_matrix", spy)
+    jaxskid.load(path, **kw)
+    robot = seen["robot"]
+    return robot, seen["numbers"], [(k, float(a)) for k, a, _ in robot.coupling()]
+
+
+@pytest.mark.parametrize(("name", "floating"), [("ur5", False), ("solo12", True)])
+def test_the_checks_mass_matrix_is_pinocchios_crba(monkeypatch, name, floating):
+    """The composite-rigid-body algorithm of the check against Pinocchio's ``crba`` on the same file, joints
+    matched by name; a floating base at the identity, its twist ``(omega, v)`` against Pinocchio's ``(v, omega)``."""
+    path = helpers.URDFS[name]
+    robot, numbers, coupling = _load_check_numbers(monkeypatch, path, floating_base=floating)
+    model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer()) if floating else pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    q = np.random.default_rng(3).uniform(-np.pi, np.pi, len(robot.joints))
+    q_pin = pin.neutral(model)
+    order = [6 * floating]  # rows of Pinocchio's M in jaxskid's order
+    for i, j in enumerate(robot.joints):
+        joint = model.joints[model.getJointId(j.name)]
+        assert joint.nq == 1
+        q_pin[joint.idx_q] = q[i]
+        order.append(joint.idx_v)
+    order = ([3, 4, 5, 0, 1, 2] if floating else []) + order[1:]
+    reference = pin.crba(model, data, q_pin)
+    reference = np.triu(reference) + np.triu(reference, 1).T
+    ours = _inertia_check._mass_matrix(robot, *numbers, coupling, q)
+    np.testing.assert_allclose(ours, reference[np.ix_(order, order)], rtol=0, atol=1e-12 * np.abs(reference).max())
+
+
+@pytest.mark.filterwarnings("ignore::jaxskid.PhysicalConsistencyWarning")  # iCub's point-mass links
+def test_a_singularity_of_one_configuration_is_no_error(monkeypatch):
+    """iCub's neck roll and yaw are coaxial at the zero configuration, where its mass matrix is singular; it loads
+    (with a floating base too), since the check asks for a singularity in every configuration tried."""
+    path = helpers.ERD / "icub_description/robots/icub.urdf"
+    for floating in (False, True):
+        robot, numbers, coupling = _load_check_numbers(monkeypatch, path, floating_base=floating)
+        m = _inertia_check._mass_matrix(robot, *numbers, coupling, np.zeros(len(robot.joints)))
+        d = np.sqrt(np.diag(m))
+        assert np.linalg.eigvalsh(m / np.outer(d, d))[0] < 1e-12  # singular there
+    monkeypatch.undo()
+    assert jaxskid.load(path).n_dof == 32 and jaxskid.load(path, floating_base=True).floating_base
+
+
+@pytest.mark.parametrize(("kwargs", "where", "message"), [
+    ({"bogus": 1}, None, "unknown option 'bogus'; a URDF file takes symbolic_inertia, mimic, floating_base"),
+    ({"flaoting_base": True}, None, "'flaoting_base' (did you mean 'floating_base'?)"),
+    ({"lock": "j1"}, "lock", "expected a mapping joint name -> position, got the string 'j1'"),
+    ({"lock": ["j1"]}, "lock", "got a list of 1 item"),
+    ({"balance_inertia": "no"}, "balance_inertia", "expected true or false, got the string 'no'"),
+    ({"mimic": None}, "mimic", "expected true or false, got nothing (null)"),
+    ({"drives": 1}, "drives", "expected true or false, got the number 1"),
+    ({"gravity": None}, "gravity", "expected 3 values, got nothing (null)"),
+    ({"gravity": "down"}, "gravity", "expected 3 values, got the string 'down'"),
+])
+def test_load_keywords_are_checked(kwargs, where, message):
+    path = helpers.URDFS["double_pendulum"]
+    with pytest.raises(ModelError) as info:
+        jaxskid.load(path, **kwargs)
+    assert info.value.source == str(path) and info.value.where == where
+    assert message in info.value.message
+
+
+def test_a_yaml_file_refuses_urdf_options_and_non_bool_drives():
+    path = helpers.ROBOTS_DIR / "arm_2r.yaml"
+    with pytest.raises(ModelError, match="unknown option"):
+        jaxskid.load(path, floating_base=True)
+    with pytest.raises(ModelError, match="drives: expected true or false"):
+        jaxskid.load(path, drives="yes")
+
+
+def test_visuals_are_not_read(tmp_path):
+    """A malformed ``<visual>`` (box sizes that are words) does not stop the dynamics, as in Pinocchio's model
+    reader: the robot equals the one read from the file without it."""
+    path = DATA / "urdf" / "bad_visual.urdf"
+    plain = tmp_path / "plain.urdf"
+    plain.write_text(path.read_text().replace('<visual><geometry><box size="a b c"/></geometry></visual>', ""))
+    robot, reference = jaxskid.load(path), jaxskid.load(plain)
+    assert robot.joints == reference.joints and robot.default_params() == reference.default_params()
