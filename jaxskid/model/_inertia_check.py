@@ -1,6 +1,6 @@
 """Whether a robot's default inertias make a usable model: checked when a description is loaded.
 
-Two checks, at the default parameter values (a robot with parameters that have no default, or with bodies
+Three checks, at the default parameter values (a robot with parameters that have no default, or with bodies
 whose mass-inertia is unknown, :attr:`~jaxskid.Robot.without_inertia`, is not checked):
 
 * **A joint that moves nothing.** The mass matrix is positive definite only if every moving joint carries
@@ -10,6 +10,12 @@ whose mass-inertia is unknown, :attr:`~jaxskid.Robot.without_inertia`, is not ch
   makes ``M`` singular in every configuration, and forward dynamics and rollouts NaN. It is an error
   (:class:`~jaxskid.ModelError`) when ``M_ii`` vanishes at the reference configuration and at random ones.
   With a floating base, the whole robot's composite inertia must be positive definite.
+* **Joints that move together without moving mass.** Each joint may carry inertia along its axis while a
+  combination of joints moves none: two coaxial joints with a massless link between them, a massless floating
+  base turned against its first joint. The mass matrix (composite-rigid-body algorithm) scaled to a unit
+  diagonal then has an eigenvalue of zero; below ``1e-10`` at the reference configuration and at every random
+  one is an error naming the joints of its eigenvector. A singularity of some configurations only (two axes
+  that align at zero, as iCub's neck) is none.
 * **A body that no rigid body can be** (Wensing, Kim & Slotine, RA-L 2017): zero mass with a nonzero
   rotational inertia, or principal moments about the centre of mass that break the triangle inequality
   ``I_1 + I_2 >= I_3`` (a planar model that gives the moment about its axis only is let be). Published URDFs carry such bodies (placeholders, rounding), and every algorithm
@@ -121,10 +127,10 @@ def _check_mass_matrix(robot, numbers, configurations, source) -> None:
     joint carries inertia along its own axis: joints that move together without moving any mass (two coaxial
     joints with a massless link between them; a massless floating base turned against its first joint).
     ``numbers``: the bodies' ``(origins, screws, inertias, base inertia or None)``."""
-    coupling = [(k, float(a)) for k, a, _ in robot.coupling()] if all(
-        sp.sympify(a).is_number for _, a, _ in robot.coupling()) else None
-    if coupling is None or not coupling and numbers[3] is None:
+    rows = robot.coupling()
+    if not all(sp.sympify(a).is_number for _, a, _ in rows) or not rows and numbers[3] is None:
         return  # a mimic multiplier without a number, or nothing moves
+    coupling = [(k, float(a)) for k, a, _ in rows]
     null = None
     for q in configurations:
         m = _mass_matrix(robot, *numbers, coupling, q)
@@ -137,7 +143,7 @@ def _check_mass_matrix(robot, numbers, configurations, source) -> None:
             return
         null = vectors[:, 0] / d
     names = (["the floating base"] * 6 if numbers[3] is not None else []) + list(robot.joint_names)
-    null = np.abs(null) / np.abs(null).max()
+    null = np.abs(null) / np.abs(null).max() if np.abs(null).max() > 0 else np.ones(len(names))
     moved = list(dict.fromkeys(n if n.startswith("the ") else repr(n) for n, x in zip(names, null) if x > 0.01))
     raise ModelError(
         f"the mass matrix is singular in every configuration tried: {' and '.join(moved)} can move together "
