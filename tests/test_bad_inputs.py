@@ -118,6 +118,7 @@ CASES = {
     "urdf_xacro_expression.urdf": ("joint[name=j1].origin.xyz", "expected 3 numbers, got '${length} 0 0'"),
     "urdf_limit_not_a_number.urdf": ("joint[name=j1].limit.effort", "expected a number, got 'lots'"),
     "urdf_number_with_underscore.urdf": ("link[name=arm].inertial.mass", "expected a number, got '1_0'"),
+    "urdf_number_in_another_script.urdf": ("link[name=arm].inertial.mass", "expected a number, got '\u0661'"),
     "urdf_com_beyond_any_unit.urdf": ("link[name=arm].inertial.origin.xyz", "expected magnitudes of at most 1e+30"),
     "urdf_rod_along_its_axis.urdf": ("link 'rod' <inertial>", "('rod': no mass off the axis and no moment of inertia"),
     "urdf_coaxial_joints_massless_link.urdf": (None, "the mass matrix is singular in every configuration tried: "

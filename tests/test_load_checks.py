@@ -103,3 +103,35 @@ def test_visuals_are_not_read(tmp_path):
     plain.write_text(path.read_text().replace('<visual><geometry><box size="a b c"/></geometry></visual>', ""))
     robot, reference = jaxskid.load(path), jaxskid.load(plain)
     assert robot.joints == reference.joints and robot.default_params() == reference.default_params()
+
+
+def test_what_yourdfpy_is_given_is_what_was_checked(tmp_path):
+    """An entity of the file's own DTD arrives expanded (the mass 1.5, not an empty string), and the ``<axis>`` of
+    a fixed joint, which urdfdom does not read, is not read here either."""
+    link = '<link name="b"><inertial><mass value="&m;"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
+    path = tmp_path / "entity.urdf"
+    path.write_text(f'<?xml version="1.0"?><!DOCTYPE r [<!ENTITY m "1.5">]><robot name="r"><link name="a"/>{link}'
+                    '</inertial></link><link name="c"/><joint name="j" type="revolute"><parent link="a"/>'
+                    '<child link="b"/><axis xyz="0 0 1"/></joint><joint name="w" type="fixed"><parent link="b"/>'
+                    '<child link="c"/><axis xyz="abc"/></joint></robot>')
+    assert jaxskid.load(path).default_params()["b_m"] == 1.5
+
+
+def test_a_constant_far_angle_is_evaluated_when_read(tmp_path):
+    """``sin(10**15)`` in a file is its value (mpmath), not the generated programs' sine of an argument beyond
+    their exact reduction."""
+    import mpmath
+
+    text = (helpers.ROBOTS_DIR / "single_pendulum.yaml").read_text()
+    path = tmp_path / "far.yaml"
+    path.write_text(text.replace("gravity: [0, 0, -g]", "gravity: [0, 0, '-g*sin(10**15)']", 1))
+    assert "'-g*sin(10**15)'" in path.read_text()
+    robot = jaxskid.load(path)
+    g = robot.default_params()["g"]
+    dyn = jaxskid.lower(robot, ["gravity_torques"])
+    reference = jaxskid.load(helpers.ROBOTS_DIR / "single_pendulum.yaml")
+    q = np.array([0.7])
+    scale = float(mpmath.sin(mpmath.mpf(10) ** 15))
+    expected = np.asarray(jaxskid.lower(reference, ["gravity_torques"]).gravity_torques(q)) * scale
+    np.testing.assert_allclose(np.asarray(dyn.gravity_torques(q)), expected, rtol=1e-12)
+    assert g == reference.default_params()["g"]

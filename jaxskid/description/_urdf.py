@@ -59,7 +59,7 @@ _JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "
 _SUPPORTED = ", ".join(_JOINT_TYPES)
 _INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 _XML_SPACE = " \t\r\n"
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(inf|infinity|nan)", re.IGNORECASE)
+_NUMBER = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?|[+-]?(inf|infinity|nan)", re.IGNORECASE)
 """A number as urdfdom reads it: ASCII digits (no ``1_0``, no other scripts' digits), separated by XML space."""
 
 

@@ -10,7 +10,6 @@ as Pinocchio's model reader does not read them either. Contact points read the c
 
 from __future__ import annotations
 
-import copy
 import io
 
 from .._errors import ModelError
@@ -70,14 +69,24 @@ def load_yourdfpy(data: bytes):
 
 def dynamics_only(root) -> bytes:
     """The document ``root`` with what the dynamics read: the robot's name, each link's name and ``<inertial>``,
-    and the joints (module docstring)."""
+    and the joints (module docstring), a fixed joint without its ``<axis>`` (urdfdom does not read it either).
+    Elements are copied by their attributes' values, so that an entity of the file's own DTD arrives expanded."""
     from lxml import etree
 
     out = etree.Element("robot", name=root.get("name"))
     for el in root:
         if el.tag == "link":
             link = etree.SubElement(out, "link", name=el.get("name"))
-            link.extend(copy.deepcopy(i) for i in el.findall("inertial"))
+            link.extend(_copy(i) for i in el.findall("inertial"))
         elif el.tag == "joint":
-            out.append(copy.deepcopy(el))
+            joint = out.makeelement("joint", dict(el.attrib))
+            joint.extend(_copy(c) for c in el if isinstance(c.tag, str) and not (
+                c.tag == "axis" and el.get("type") == "fixed"))
+            out.append(joint)
     return etree.tostring(out)
+
+
+def _copy(el):
+    out = el.makeelement(el.tag, dict(el.attrib))
+    out.extend(_copy(c) for c in el if isinstance(c.tag, str))  # elements only: no comments or entity nodes
+    return out

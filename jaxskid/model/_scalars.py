@@ -104,3 +104,22 @@ def _power(base: float, exponent: float) -> float:
     if base == 0 and exponent < 0:
         raise ZeroDivisionError
     return math.pow(base, exponent)
+
+
+_PERIODIC = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
+FAR_ANGLE = 1e4
+"""Constant angles from this magnitude on are evaluated when read: the generated JAX programs' sine and cosine
+reduce their argument exactly only below it (:mod:`jaxskid._fused`)."""
+
+
+def folded(expr: sp.Expr) -> sp.Expr:
+    """``expr`` with every periodic function of a constant angle of magnitude :data:`FAR_ANGLE` or more replaced by
+    its value (``sin(10**15)``: the 17 significant digits SymPy computes)."""
+
+    def far(e) -> bool:
+        if not (isinstance(e, sp.Function) and e.func in _PERIODIC) or e.free_symbols:
+            return False
+        x = float_value(e.args[0])
+        return x is not None and math.isfinite(x) and abs(x) >= FAR_ANGLE
+
+    return expr.replace(far, lambda e: sp.Float(e.evalf(17), 17)) if expr.has(*_PERIODIC) else expr

@@ -34,7 +34,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import ModelError
-from ._scalars import ALLOWED, float_value, unsupported
+from ._scalars import ALLOWED, float_value, folded, unsupported
 
 TOL = 1e-6
 """Unit axes and quaternions, orthonormal rotations, ``omega . v`` of a revolute screw."""
@@ -93,7 +93,7 @@ def to_expr(value, *, where: str = "") -> sp.Expr:
         raise ModelError(f"expected a scalar number or expression, got {value!r}", where=where)
     expr = _realify(expr)
     _check_scalar(expr, value, where)
-    return expr
+    return folded(expr)
 
 
 def _sympify(value, where):
