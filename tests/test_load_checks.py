@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+import sympy
 
 import helpers
 import jaxskid
@@ -135,3 +136,37 @@ def test_a_constant_far_angle_is_evaluated_when_read(tmp_path):
     expected = np.asarray(jaxskid.lower(reference, ["gravity_torques"]).gravity_torques(q)) * scale
     np.testing.assert_allclose(np.asarray(dyn.gravity_torques(q)), expected, rtol=1e-12)
     assert g == reference.default_params()["g"]
+
+
+def _joint(**kw):
+    args = dict(name="j1", type="revolute", parent=-1, origin=np.eye(4), screw=(0, 0, 1, 0, 0, 0),
+                inertia=jaxskid.spatial_inertia(1.0, (0.1, 0, 0), np.eye(3) * 0.01), link="l1")
+    return jaxskid.Joint(**{**args, **kw})
+
+
+@pytest.mark.parametrize(("kwargs", "where", "message"), [
+    ({"joints": None}, "joints", "expected a sequence of Joint, got nothing (null)"),
+    ({"joints": {"a": 1}}, "joints", "got a mapping with keys a"),
+    ({"joints": [_joint(name=None)]}, "joints[0].name", "expected a non-empty string, got nothing (null)"),
+    ({"joints": [_joint(link=3)]}, "joints[0].link", "expected a non-empty string, got the number 3"),
+    ({"joints": [_joint()], "defaults": [1, 2]}, "defaults", "expected a mapping parameter name -> value"),
+    ({"joints": [_joint(inertia=np.eye(6) * jaxskid.symbol("m") ** 0.5 * sympy.Max(1, jaxskid.symbol("m")))],
+      "defaults": {"m": 1.0}}, "joints[0].inertia[0][0]", "unsupported function 'Max'"),
+])
+def test_robot_create_names_the_argument(kwargs, where, message):
+    """The Python description's containers and names get the errors a file's keys get."""
+    with pytest.raises(ModelError) as info:
+        jaxskid.Robot.create("r", **kwargs)
+    assert info.value.where == where and message in info.value.message
+
+
+def test_spatial_inertia_takes_arrays_and_names_a_wrong_shape():
+    """A NumPy 3x3 inertia is a matrix, as a nested list is; six values are (Ixx, Ixy, Ixz, Iyy, Iyz, Izz)."""
+    inertia = np.array([[0.1, 0.01, 0.0], [0.01, 0.2, 0.0], [0.0, 0.0, 0.3]])
+    m6 = jaxskid.spatial_inertia(2.0, (0, 0, 0), inertia)
+    assert m6[:3, :3] == jaxskid.spatial_inertia(2.0, (0, 0, 0), inertia.tolist())[:3, :3]
+    assert m6[:3, :3] == jaxskid.spatial_inertia(2.0, (0, 0, 0), (0.1, 0.01, 0.0, 0.2, 0.0, 0.3))[:3, :3]
+    robot = jaxskid.Robot.create("r", [_joint(name="j", link="end")], end_effectors="end")
+    assert robot.end_effectors == ("end",)
+    with pytest.raises(ModelError, match=r"inertia: expected a 3x3 inertia or its six values"):
+        jaxskid.spatial_inertia(1.0, (0, 0, 0), np.eye(2))

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import sympy as sp
 
+from .._errors import ModelError
 from . import _spatial
 
 AXES = ("rx", "ry", "rz", "x", "y", "z")
@@ -152,14 +153,23 @@ def spatial_inertia(mass, com=(0, 0, 0), inertia=None, *, about: str = "com") ->
 
 
 def inertia_matrix(inertia) -> sp.Matrix:
+    """A 3x3 rotational inertia from a 3x3 matrix (SymPy, NumPy or nested sequences), the six values (Ixx, Ixy,
+    Ixz, Iyy, Iyz, Izz), or None (zero)."""
     if inertia is None:
         return sp.zeros(3)
+    if hasattr(inertia, "shape") and not isinstance(inertia, sp.MatrixBase):  # a NumPy or JAX array
+        inertia = [[sp.sympify(x) for x in row] for row in inertia] if len(inertia.shape) == 2 else list(inertia)
     if isinstance(inertia, (sp.MatrixBase,)) or (
         isinstance(inertia, Sequence) and len(inertia) == 3 and isinstance(inertia[0], Sequence)
     ):
-        return sp.Matrix(inertia)
-    ixx, ixy, ixz, iyy, iyz, izz = (sp.sympify(x) for x in inertia)
-    return sp.Matrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        matrix = sp.Matrix(inertia)
+        if matrix.shape == (3, 3):
+            return matrix
+    elif isinstance(inertia, Sequence) and len(inertia) == 6:
+        ixx, ixy, ixz, iyy, iyz, izz = (sp.sympify(x) for x in inertia)
+        return sp.Matrix([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    raise ModelError(f"expected a 3x3 inertia or its six values (Ixx, Ixy, Ixz, Iyy, Iyz, Izz), got {inertia!r}",
+                     where="inertia")
 
 
 def transform_inertia(m6: sp.Matrix, c: sp.Matrix) -> Matrix:

@@ -117,6 +117,8 @@ class Robot:
                 ``floating_base``, ``base_inertia``, ``constraints[0].frame_b``).
         """
         floating_base, base_inertia = _normalize_base(floating_base, base_inertia)
+        _check_arguments(name, joints, defaults)
+        end_effectors = (end_effectors,) if isinstance(end_effectors, str) else end_effectors
         joints = [_normalize_joint(j, i) for i, j in enumerate(joints)]
         frames = [_normalize_frame(f, k) for k, f in enumerate(frames)]
         check_parents([j.parent for j in joints])
@@ -427,10 +429,24 @@ def _bodies_of(robot: Robot, links: Sequence[str]) -> tuple[str, ...]:
     return tuple(j.link for i, j in enumerate(robot.joints) if i in bodies)
 
 
+def _check_arguments(name, joints, defaults) -> None:
+    """:meth:`Robot.create`'s containers: a name, a sequence of joints, a mapping of defaults."""
+    if not isinstance(name, str) or not name:
+        raise ModelError(f"expected a non-empty string, got {describe_value(name)}", where="name")
+    if isinstance(joints, (str, bytes, Mapping)) or not isinstance(joints, Iterable):
+        raise ModelError(f"expected a sequence of Joint, got {describe_value(joints)}", where="joints")
+    if defaults is not None and not isinstance(defaults, Mapping):
+        raise ModelError(f"expected a mapping parameter name -> value, got {describe_value(defaults)}",
+                         where="defaults")
+
+
 def _normalize_joint(j: Joint, i: int) -> Joint:
     where = f"joints[{i}]"
     if not isinstance(j, Joint):
         raise ModelError(f"expected a Joint, got {type(j).__name__}", where=where)
+    for key, value in (("name", j.name), ("link", j.link)):
+        if not isinstance(value, str) or not value:
+            raise ModelError(f"expected a non-empty string, got {describe_value(value)}", where=f"{where}.{key}")
     if j.type not in (*JOINT_TYPES, "fixed"):
         raise ModelError(
             f"unknown joint type {j.type!r}; expected one of revolute, prismatic, fixed", where=f"{where}.type"
