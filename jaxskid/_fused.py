@@ -12,12 +12,11 @@ classic one: Cody & Waite argument reduction
 for ``|n| < 2**20`` (``|x| < 1.6e6`` rad), and the minimax polynomials of Cephes' ``sin.c`` on
 [-pi/4, pi/4]. Measured against mpmath (``tests/test_trig.py``): within about one ulp of 1.0 in float64
 for ``|x| <= 1e5``, 1.5e-7 in float32 for ``|x| <= 1e4``. Beyond ``|x| ~ 1.6e6`` (float32: ``1e5``) the
-reduction loses bits gradually, and the reduced argument is clipped to [-pi/4, pi/4], so that the values stay
-within [-1, 1] (unclipped, the polynomials of an unreduced argument gave ``sin(1e9) = -117115`` in float32);
-the native kernels take libm's values there, and XLA's functions (``jnp.sin``) reduce exactly. Taking those
-for far angles here cost every angle their evaluation (a Panda rollout 1.5x slower). ``inf`` and ``nan`` give
-``nan``.
-Derivatives are defined exactly (``d sin = cos dx``).
+reduction loses bits gradually, and the reduced argument is clipped to [-pi/4, pi/4]: the polynomials of an
+unreduced argument grow without bound, the clipped ones stay within [-1, 1]. The native kernels take libm's
+values there; XLA's functions would reduce exactly, but a select between them and the polynomials costs every
+angle their evaluation (``benchmarks/rollouts.py``: a Panda rollout at batch 1024 1.5x slower). ``inf`` and
+``nan`` give ``nan``. Derivatives are defined exactly (``d sin = cos dx``).
 This serves CPU programs only. On a GPU (an H100) the multiply-adds were the slower choice, by far for
 the G1's mass matrix (``benchmarks/scaling.py --trig fused`` against the default); there a program uses
 XLA's functions (``lax.platform_dependent``, resolved when the program is lowered for its platform).

@@ -274,7 +274,11 @@ def check_mass_inertia(m6: sp.Matrix, values: Mapping, where: str) -> None:
         return
     with np.errstate(all="ignore"):
         a = np.array(xs, dtype=float).reshape(6, 6)
-        if not np.all(np.isfinite(a)) or np.abs(a).max() > LARGEST:
+        if not np.all(np.isfinite(a)):
+            k = int(np.flatnonzero(~np.isfinite(a))[0])
+            raise ModelError(f"expected finite real values at the parameters' defaults, got {m6[k]} = {a.flat[k]}",
+                             where=where)
+        if np.abs(a).max() > LARGEST:
             raise ModelError("expected finite mass-inertia values of a physical size", where=where)
         m = a[5, 5]
         if m == 0:
@@ -323,8 +327,8 @@ def check_model(joints: Sequence, frames: Sequence, gravity: Sequence, end_effec
     _check_real(gravity, values, "gravity")
     for i, j in enumerate(joints):
         where = f"joints[{i}]"
-        for part in ("origin", "screw", "inertia"):
-            _check_real(getattr(j, part), values, f"{where}.{part}")
+        _check_real(j.origin, values, f"{where}.origin")  # the inertia: check_mass_inertia
+        _check_real(j.screw, values, f"{where}.screw")
         check_pose(j.origin, values, f"{where}.origin")  # first: a spatial description's screws depend on it
         if j.type != "fixed":
             check_screw(j.type, j.screw, values, f"{where}.screw")
