@@ -12,11 +12,13 @@ classic one: Cody & Waite argument reduction
 for ``|n| < 2**20`` (``|x| < 1.6e6`` rad), and the minimax polynomials of Cephes' ``sin.c`` on
 [-pi/4, pi/4]. Measured against mpmath (``tests/test_trig.py``): within about one ulp of 1.0 in float64
 for ``|x| <= 1e5``, 1.5e-7 in float32 for ``|x| <= 1e4``. Beyond ``|x| ~ 1.6e6`` (float32: ``1e5``) the
-reduction loses bits gradually, and the reduced argument is clipped to [-pi/4, pi/4]: the polynomials of an
-unreduced argument grow without bound, the clipped ones stay within [-1, 1]. The native kernels take libm's
-values there; XLA's functions would reduce exactly, but a select between them and the polynomials costs every
-angle their evaluation (``benchmarks/rollouts.py``: a Panda rollout at batch 1024 1.5x slower). ``inf`` and
-``nan`` give ``nan``. Derivatives are defined exactly (``d sin = cos dx``).
+reduction loses bits, and the polynomials of an unreduced argument grow without bound. In float32, where that
+starts at angles a wheel reaches in half an hour, the reduced argument is clipped to [-pi/4, pi/4], so that the
+values stay within [-1, 1]; in float64 the two operations per angle cost the G1's inverse dynamics about 5 %,
+for angles beyond 1.6e6 rad, and are left out. The native kernels take libm's values beyond 1e5; XLA's
+functions would reduce exactly, but a select between them and the polynomials costs every angle their
+evaluation (``benchmarks/rollouts.py``: a Panda rollout at batch 1024 1.5x slower). ``inf`` and ``nan`` give
+``nan``. Derivatives are defined exactly (``d sin = cos dx``).
 This serves CPU programs only. On a GPU (an H100) the multiply-adds were the slower choice, by far for
 the G1's mass matrix (``benchmarks/scaling.py --trig fused`` against the default); there a program uses
 XLA's functions (``lax.platform_dependent``, resolved when the program is lowered for its platform).
@@ -68,7 +70,8 @@ def _sincos(x):
     pio2, cs, cc = (_PIO2_F32, _SIN_F32, _COS_F32) if single else (_PIO2, _SIN, _COS)
     n = jnp.round(x * 0.63661977236758134308)
     r = ((x - n * pio2[0]) - n * pio2[1]) - n * pio2[2]
-    r = jnp.clip(r, -0.7854, 0.7854)  # beyond the exact reduction r can be anything: keep the polynomials bounded
+    if single:  # beyond the exact reduction (float32: from about 1e4) r can be anything: bound the polynomials
+        r = jnp.clip(r, -0.7854, 0.7854)
     z = r * r
     ps, pc = cs[0], cc[0]
     for c in cs[1:]:

@@ -52,17 +52,18 @@ def test_float32(trig):
 
 @pytest.mark.parametrize(("dtype", "exact", "tol"), [(np.float32, 1e4, 1.5e-7), (np.float64, 1.6e6, 4.5e-16)])
 def test_large_angles(trig, dtype, exact, tol):
-    """Within the exact argument reduction the values agree with mpmath; beyond it (a wheel's angle after hours)
-    they stay sines and cosines of some angle: within [-1, 1], s^2 + c^2 = 1 (the polynomials of an unreduced
-    argument grow without bound)."""
+    """Within the exact argument reduction the values agree with mpmath; beyond it, in float32 (a wheel's angle
+    after half an hour), they stay sines and cosines of some angle: within [-1, 1], s^2 + c^2 = 1 (the
+    polynomials of an unreduced argument grow without bound)."""
     near = np.geomspace(10, exact, 40).astype(dtype)
     s_ref, c_ref = _reference(near)
     for f, ref in zip(trig, (s_ref, c_ref)):
         assert np.max(np.abs(np.asarray(f(jnp.asarray(near)), np.float64) - ref)) < tol
-    far = np.concatenate([np.geomspace(exact, 3e38, 60), -np.geomspace(exact, 1e30, 20)]).astype(dtype)
-    s, c = (np.asarray(f(jnp.asarray(far)), np.float64) for f in trig)
-    assert np.all(np.abs(s) <= 1) and np.all(np.abs(c) <= 1)
-    np.testing.assert_allclose(s * s + c * c, 1.0, atol=4 * tol)
+    if dtype == np.float32:
+        far = np.concatenate([np.geomspace(exact, 3e38, 60), -np.geomspace(exact, 1e30, 20)]).astype(dtype)
+        s, c = (np.asarray(f(jnp.asarray(far)), np.float64) for f in trig)
+        assert np.all(np.abs(s) <= 1) and np.all(np.abs(c) <= 1)
+        np.testing.assert_allclose(s * s + c * c, 1.0, atol=4 * tol)
 
 
 def test_non_finite(trig):
