@@ -164,17 +164,39 @@ def test_several_reduces(monkeypatch, staged):
 
 
 def test_padded_batch():
-    """A row of the padded batch spans an odd number of cache lines; small batches and odd ones stay."""
-    assert _gathered.padded_batch(4096, jnp.float64) == 4104
-    assert _gathered.padded_batch(4096, jnp.float32) == 4112
-    assert _gathered.padded_batch(4000, jnp.float64) == 4008  # 500 lines -> 501
-    assert _gathered.padded_batch(4008, jnp.float64) == 4008
+    """A row of a padded batch spans an odd number of cache lines; small batches and odd ones stay, and so do
+    batches of more than a tile (computed a tile at a time), whose tile spans an odd number."""
+    assert _gathered.padded_batch(256, jnp.float64) == 264
+    assert _gathered.padded_batch(256, jnp.float32) == 272
+    assert _gathered.padded_batch(160, jnp.float64) == 168  # 20 lines -> 21
+    assert _gathered.padded_batch(168, jnp.float64) == 168
     assert _gathered.padded_batch(40, jnp.float64) == 40
-    for size in (64, 100, 1000, 4096, 65536):
+    assert _gathered.padded_batch(4096, jnp.float64) == 4096
+    assert -(-_gathered.TILE * 8 // 64) % 2 == 1
+    for size in (64, 100, 200, 256):
         for dtype in (jnp.float32, jnp.float64):
             padded = _gathered.padded_batch(size, dtype)
             lines = -(-padded * jnp.dtype(dtype).itemsize // 64)
             assert padded >= size and lines % 2 == 1
+
+
+@pytest.mark.parametrize("tile", [5, 16])
+def test_tiled_batch(monkeypatch, tile):
+    """A batch of more than TILE states, computed a tile at a time with the last tile overlapping the one before
+    (23 states in tiles of 5: the last starts at state 18; of 16: at 7), equals the select chains; so does a
+    batch with two batch axes, and one whose parameters carry the batch too."""
+    monkeypatch.setattr(_gathered, "TILE", tile)
+    dyn, _ = _lowered(PANDA, FINGERS, names=["mass_matrix", "coriolis_matrix"])
+    q, qd, _ = _states(dyn.n_dof, (23,), seed=11)
+    for name, args in (("mass_matrix", [q]), ("coriolis_matrix", [q, qd])):
+        got = getattr(dyn, name)(*args)
+        np.testing.assert_allclose(got, _select_chains(dyn, name, args), rtol=1e-12, atol=1e-13)
+    q2 = _states(dyn.n_dof, (3, 7), seed=12)[0]
+    np.testing.assert_allclose(dyn.mass_matrix(q2).reshape(21, dyn.n_dof, dyn.n_dof),
+                               _select_chains(dyn, "mass_matrix", [q2.reshape(21, dyn.n_dof)]), rtol=1e-12, atol=1e-13)
+    p = dyn.param_vector()[None, :] * (1 + 0.1 * np.random.default_rng(13).uniform(size=(23, 1)))
+    chains = jax.vmap(dyn.generated("mass_matrix"), in_axes=(0, 0))(q, p)
+    np.testing.assert_allclose(dyn.mass_matrix(q, params=p), chains, rtol=1e-12, atol=1e-13)
 
 
 def test_a_padded_batch_gives_each_state_its_own_result(panda):

@@ -35,6 +35,7 @@ from ._ldl import materialize
 from ._parameters import inexact_inputs
 from ._pullback import with_pullback
 from ._quantity import Quantity
+from ._recycle import Recycler, check_donated, check_out, recycled_result
 
 
 BACKWARD_KERNELS = ("fd_vjp", "rk4_vjp", "rk4fb_vjp", "kkt_vjp")
@@ -56,29 +57,6 @@ def _traced_once(fn: Callable, name: str | None = None) -> Callable:
     if name is not None:
         jitted.__name__ = name
     return jitted
-
-
-def _check_out(name: str, out, shape: tuple, dtype) -> None:
-    """``out`` of a call: the result's shape and dtype."""
-    if tuple(out.shape) != tuple(shape) or out.dtype != dtype:
-        raise ShapeError(f"{name}: out: expected {jnp.dtype(dtype).name}{list(shape)} (the result's shape and dtype), "
-                         f"got {out.dtype.name}{list(out.shape)}")
-
-
-def _check_donated(name: str, out, inputs) -> None:
-    """``out`` of a call from Python: a JAX array that is not deleted and not one of the call's inputs
-    (JAX's own errors for these come from deep inside its runtime)."""
-    if not isinstance(out, jax.Array):
-        raise ShapeError(f"{name}: out: expected a JAX array (an earlier result of {name}, whose memory the result "
-                         f"takes), got {type(out).__name__}")
-    if isinstance(out, jax.core.Tracer):
-        return
-    if out.is_deleted():
-        raise ShapeError(f"{name}: out: the array was deleted (donated to an earlier call as out, or deleted by "
-                         f"you); pass the array that call returned")
-    if any(x is out for x in jax.tree_util.tree_leaves(inputs)):
-        raise ShapeError(f"{name}: out: the array is also an input of this call; its memory cannot be both read "
-                         f"and written: pass an earlier result")
 
 
 class Dynamics(QuantitySet):
@@ -385,7 +363,7 @@ class Dynamics(QuantitySet):
             arrays, p, dtype = inexact_inputs(self.layout, state, params)
             batch = batch_shape(name, [(a, x.shape, cores[a]) for a, x in zip(args, arrays)], [("params", p.shape, n_params)])
             if out is not None:
-                _check_out(name, out, (*batch, *shape), dtype)
+                check_out(name, out, (*batch, *shape), dtype)
                 # The native kernel writes into it. The JAX form does not take it: the outermost jit donates
                 # it, and XLA gives its memory to the result of the same shape.
                 if native is not None and not batch:
@@ -431,6 +409,8 @@ class Dynamics(QuantitySet):
         compiled = outermost(functools.partial(body, pair=True), body, donate_argnames="out", keep_unused=True)
         quantity = self._quantities[name]
         takes_wrench, call = quantity.takes_wrench, quantity.call
+        recycler = Recycler() if name != "forward_kinematics" else None  # jaxskid.runtime._recycle
+        cores, n_params = [self.argument_shape(a) for a in args], (len(self.parameters),)
 
         def fn(*state, params=None, wrench=None, out=None, **unexpected):
             if unexpected:
@@ -451,9 +431,15 @@ class Dynamics(QuantitySet):
                              self.parameters)
             if params is not None:  # None stays: the defaults become constants of the compiled program
                 params = self.packed_params(params)
+            kept = None
             if out is not None:
-                _check_donated(name, out, (*state, params))
+                check_donated(name, out, (*state, params))
+            elif recycler is not None and top_level(state):  # a large result takes an earlier one's memory
+                kept = recycled_result([*zip(state, cores)], (params, n_params), shape)
+                out = None if kept is None else recycler.out(*kept)
             result = compiled(*state, params=params, out=out)
+            if kept is not None:
+                recycler.keep(result)
             if wrench is not None:
                 result = result + self.external_torques(state[0], wrench, params)
             return result

@@ -1,0 +1,165 @@
+"""Memory for large results on CPU: a call's result takes the memory of an earlier result of the same quantity
+that nothing references any more.
+
+glibc's allocator maps every block above its mmap threshold (32 MiB at most) afresh, and the operating system
+clears each page of it when the program first writes there: for the G1's regressor at a batch of 4,096 (a
+276 MB result) the clearing costs more than computing the result. So each quantity keeps the last
+:data:`KEPT` results of at least :data:`MIN_BYTES` that it returned to Python. A call whose result would have
+the shape, dtype and device of one of them that only this pool references is given it as ``out`` (donated,
+as :meth:`jaxskid.Dynamics.mass_matrix`'s ``out=`` does), and the result is written into its memory. Two,
+so that a loop ``Y = dyn.regressor(q, qd, qdd)`` reuses the result before last while it holds the last.
+A large call with none to reuse is given a new array, so that a quantity compiles one program per shape
+(an ``out`` changes the program).
+
+An array you reference, directly, through a container or through a NumPy view of its memory, is never taken.
+The pool holds at most :data:`KEPT` results per quantity beyond those you hold, until the
+:class:`~jaxskid.Dynamics` is freed; ``JAXSKID_RECYCLE=0`` in the environment turns it off.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import threading
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import ShapeError
+
+MIN_BYTES = 32 * 2**20
+"""Results from this size on are recycled: glibc's largest mmap threshold, above which every block is mapped
+afresh."""
+
+KEPT = 2
+"""Results kept per quantity (module docstring)."""
+
+VARIABLE = "JAXSKID_RECYCLE"
+"""Set to 0 to turn recycling off."""
+
+
+def _references(arrays: list, k: int) -> int:
+    return sys.getrefcount(arrays[k])
+
+
+_UNREFERENCED = _references([object()], 0)
+"""What :func:`_references` counts for an object that only its list holds (the interpreter's own references
+included, which differ between versions)."""
+
+
+def enabled() -> bool:
+    """Whether recycling is on (``JAXSKID_RECYCLE``, read at every call)."""
+    return os.environ.get(VARIABLE, "1").strip().lower() not in ("0", "false", "no", "off")
+
+
+class Recycler:
+    """The kept results of one quantity (module docstring); safe to use from several threads."""
+
+    def __init__(self):
+        self._arrays: list[jax.Array] = []
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._arrays)
+
+    def take(self, shape: tuple, dtype, device) -> jax.Array | None:
+        """A kept result of ``shape``, ``dtype`` on ``device`` that nothing else references, removed from the
+        pool; None if there is none."""
+        with self._lock:
+            for k in range(len(self._arrays)):
+                if _references(self._arrays, k) != _UNREFERENCED:
+                    continue
+                a = self._arrays[k]
+                if a.shape == shape and a.dtype == dtype and not a.is_deleted() and a.devices() == {device}:
+                    del self._arrays[k]
+                    return a
+                del a
+        return None
+
+    def keep(self, result) -> None:
+        """Keep ``result`` (a single-device array), dropping the oldest beyond :data:`KEPT`."""
+        with self._lock:
+            self._arrays.append(result)
+            del self._arrays[:-KEPT]
+
+    def out(self, shape: tuple, dtype, device) -> jax.Array:
+        """The array to give a call as ``out``: a kept one, or a new one."""
+        kept = self.take(shape, dtype, device)
+        return kept if kept is not None else jnp.empty(shape, dtype, device=device)
+
+
+def check_out(name: str, out, shape: tuple, dtype) -> None:
+    """``out`` of a call: the result's shape and dtype."""
+    if tuple(out.shape) != tuple(shape) or out.dtype != dtype:
+        raise ShapeError(f"{name}: out: expected {jnp.dtype(dtype).name}{list(shape)} (the result's shape and dtype), "
+                         f"got {out.dtype.name}{list(out.shape)}")
+
+
+def check_donated(name: str, out, inputs) -> None:
+    """``out`` of a call from Python: a JAX array that is not deleted and not one of the call's inputs
+    (JAX's own errors for these come from deep inside its runtime)."""
+    if not isinstance(out, jax.Array):
+        raise ShapeError(f"{name}: out: expected a JAX array (an earlier result of {name}, whose memory the result "
+                         f"takes), got {type(out).__name__}")
+    if isinstance(out, jax.core.Tracer):
+        return
+    if out.is_deleted():
+        raise ShapeError(f"{name}: out: the array was deleted (donated to an earlier call as out, or deleted by "
+                         f"you); pass the array that call returned")
+    if any(x is out for x in jax.tree_util.tree_leaves(inputs)):
+        raise ShapeError(f"{name}: out: the array is also an input of this call; its memory cannot be both read "
+                         f"and written: pass an earlier result")
+
+
+def recycled_result(states, params, shape: tuple) -> tuple | None:
+    """``(result shape, dtype, device)`` of a call from Python whose result is recycled, or None where it is
+    not: a result smaller than :data:`MIN_BYTES`, states that are not real arrays of one floating dtype (or
+    integers), complex parameters, arrays on several devices or off the CPU.
+
+    ``states``, ``params``: ``(value, trailing shape)`` of the state arguments and of the packed parameters
+    (``None``: the defaults); ``shape``: the result's shape for one state. The dtype is the states' (as the
+    call converts), the batch the broadcast of the leading axes (which the call checks anew).
+    """
+    if not enabled():
+        return None
+    dtypes, devices, leads = set(), set(), []
+    for k, (x, core) in enumerate([*states, params]):
+        if x is None:
+            continue
+        if not isinstance(x, (jax.Array, np.ndarray)) or isinstance(x, jax.core.Tracer):
+            return None
+        if isinstance(x, jax.Array):
+            if len(x.devices()) != 1:
+                return None
+            devices |= x.devices()
+        if np.dtype(x.dtype).kind not in "fiu":
+            return None
+        if k < len(states):
+            dtypes.add(np.dtype(x.dtype))
+        leads.append(x.shape[:max(x.ndim - len(core), 0)])
+    floats = {d for d in dtypes if d.kind == "f"}
+    if len(devices) > 1 or len(floats) > 1:
+        return None
+    dtype = jnp.dtype(floats.pop() if floats else jnp.result_type(float))
+    if jax.dtypes.canonicalize_dtype(dtype) != dtype:
+        return None
+    device = devices.pop() if devices else _default_device()
+    if device is None or device.platform != "cpu":
+        return None
+    try:
+        result = (*np.broadcast_shapes(*leads), *shape)
+    except ValueError:
+        return None  # the call names the shapes
+    if math.prod(result) * dtype.itemsize < MIN_BYTES:
+        return None
+    return result, dtype, device
+
+
+def _default_device():
+    """The device that arrays without one go to, or None where it is not a device (a platform's name)."""
+    device = jax.config.jax_default_device
+    if device is None:
+        return jax.devices()[0]
+    return device if isinstance(device, jax.Device) else None
