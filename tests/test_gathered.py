@@ -165,13 +165,15 @@ def test_several_reduces(monkeypatch, staged):
 
 def test_padded_batch():
     """A row of a padded batch spans an odd number of cache lines; small batches and odd ones stay, and so do
-    batches of more than a tile (computed a tile at a time), whose tile spans an odd number."""
+    batches of large results (computed a tile at a time), whose tile spans an odd number."""
     assert _gathered.padded_batch(256, jnp.float64) == 264
     assert _gathered.padded_batch(256, jnp.float32) == 272
     assert _gathered.padded_batch(160, jnp.float64) == 168  # 20 lines -> 21
     assert _gathered.padded_batch(168, jnp.float64) == 168
     assert _gathered.padded_batch(40, jnp.float64) == 40
-    assert _gathered.padded_batch(4096, jnp.float64) == 4096
+    assert _gathered.padded_batch(4096, jnp.float64) == 4104
+    assert _gathered.padded_batch(4096, jnp.float64, (29, 290)) == 4096  # 276 MB: a tile at a time
+    assert _gathered.tiled(4096, jnp.float64, (29, 290)) and not _gathered.tiled(4096, jnp.float64, (29, 29))
     assert -(-_gathered.TILE * 8 // 64) % 2 == 1
     for size in (64, 100, 200, 256):
         for dtype in (jnp.float32, jnp.float64):
@@ -182,10 +184,11 @@ def test_padded_batch():
 
 @pytest.mark.parametrize("tile", [5, 16])
 def test_tiled_batch(monkeypatch, tile):
-    """A batch of more than TILE states, computed a tile at a time with the last tile overlapping the one before
-    (23 states in tiles of 5: the last starts at state 18; of 16: at 7), equals the select chains; so does a
-    batch with two batch axes, and one whose parameters carry the batch too."""
+    """A batch of large results (here of any size), computed a tile at a time with the last tile overlapping the
+    one before (23 states in tiles of 5: the last starts at state 18; of 16: at 7), equals the select chains; so
+    does a batch with two batch axes, and one whose parameters carry the batch too."""
     monkeypatch.setattr(_gathered, "TILE", tile)
+    monkeypatch.setattr(_gathered, "TILED_BYTES", 0)
     dyn, _ = _lowered(PANDA, FINGERS, names=["mass_matrix", "coriolis_matrix"])
     q, qd, _ = _states(dyn.n_dof, (23,), seed=11)
     for name, args in (("mass_matrix", [q]), ("coriolis_matrix", [q, qd])):

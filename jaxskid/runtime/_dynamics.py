@@ -380,7 +380,7 @@ class Dynamics(QuantitySet):
                 return jax.vmap(raw, in_axes=(*([0] * len(pairs)), None))(*pairs, p)[0]
             if not batch:
                 return plain(*arrays, p)
-            pad = functools.partial(padded_batch, dtype=dtype) if gather else None
+            pad = functools.partial(padded_batch, dtype=dtype, shape=shape) if gather else None
             return vmapped(raw, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)], pad)
 
         if name != "forward_kinematics":

@@ -18,7 +18,7 @@ steps whose cost is linear in the entries:
    chunks, each chunk's outputs are stacked apart, behind optimization barriers, and the chunks concatenated;
 3. one gather with a constant index, which also places the zeros and the repeated entries.
 
-A batch of more than :data:`TILE` states runs these steps in a loop, :data:`TILE` states at a time, each tile
+A batch of large results (:func:`tiled`) runs these steps in a loop, :data:`TILE` states at a time, each tile
 written into its place in the result. XLA gives a program's intermediate arrays one block of memory per call:
 for a whole batch of 4,096 of the G1's regressor, 85 MB (the table and the reduces' outputs), which glibc's
 allocator maps afresh at every call and the operating system clears page by page before the program writes
@@ -55,10 +55,16 @@ LANES = 2
 """The reduced axis: two copies of every value."""
 
 TILE = 264
-"""States computed at a time in a larger batch (module docstring): 33 cache lines of float64 values. At a batch
-of 4,096 on one core, a loop of such tiles ran the G1's regressor (29 DOF) written into an earlier result in
+"""States computed at a time in a large batch (module docstring): 33 cache lines of float64 values. At a batch
+of 4,096 on one core, written into an earlier result, a loop of such tiles ran the G1's regressor (29 DOF) in
 10.3 instead of 21.2 us per state, the G1 with hands' Coriolis matrix (43 DOF) in 5.0 instead of 8.9 and its
 mass matrix in 2.3 instead of 3.3, with the same results to the last bit."""
+
+TILED_BYTES = 32 * 2**20
+"""Results from this size on are computed a tile at a time: where glibc's allocator maps blocks afresh (its
+largest mmap threshold), and where the intermediates of a whole batch are tens of megabytes. Below it the loop
+costs more than it spares (the G1's mass matrix at a batch of 4,096, 28 MB: 1.04 us per state tiled, 0.80
+whole)."""
 
 STAGED = 8
 """Chunks above which the table is built chunk by chunk (module docstring, step 2). One stack of thousands of
@@ -68,6 +74,11 @@ the chunks' stacks back into one. The G1 with hands' regressor (2,886 distinct e
 one core) compiled in 33-38 s stacked at once and in 17-19 s chunk by chunk, and ran as fast either way (110 and
 108 us per state); the G1's (1,362 entries) in 9.4 s and 7.0 s. The Coriolis matrix of the G1 with hands (569
 entries, 5 chunks) ran 4x slower chunk by chunk: XLA reads a small table's columns straight from the reduces."""
+
+
+def tiled(size: int, dtype, shape: tuple) -> bool:
+    """Whether a batch of ``size`` results of ``shape`` is computed a tile at a time (:data:`TILED_BYTES`)."""
+    return size > TILE and size * math.prod(shape) * jnp.dtype(dtype).itemsize >= TILED_BYTES
 
 
 def _maximum(x: tuple, y: tuple) -> tuple:
@@ -117,7 +128,7 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
 
 
 def _tiled(quantity: GeneratedQuantity, args, batched, batch: int) -> jax.Array:
-    """``_assembled`` of a batch of more than :data:`TILE` states, :data:`TILE` at a time (module docstring): a loop
+    """``_assembled`` of a large batch (:func:`tiled`), :data:`TILE` states at a time (module docstring): a loop
     whose every pass computes one tile and writes it into the result. The last tile ends with the batch and
     overlaps the one before it, so that no state is padded and the result is not copied."""
     dtype = jnp.result_type(*args)
@@ -142,7 +153,7 @@ def _one_state(quantity: GeneratedQuantity) -> Callable:
     @one.def_vmap
     def _mapped(size, batched, *args):
         last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
-        if size > TILE:
+        if tiled(size, jnp.result_type(*args), quantity.shape):
             return _tiled(quantity, last, batched, size), True
         return _assembled(quantity, last, size), True
 
@@ -168,12 +179,12 @@ def gathered(quantity: GeneratedQuantity) -> Callable:
     return f
 
 
-def padded_batch(size: int, dtype) -> int:
-    """The batch to compute ``size`` states in: ``size``, or a little more so that a row of the batch spans an
-    odd number of 64-byte cache lines (module docstring). A batch of more than :data:`TILE` states is computed a
-    tile at a time, unpadded."""
+def padded_batch(size: int, dtype, shape: tuple = ()) -> int:
+    """The batch to compute ``size`` results of ``shape`` in: ``size``, or a little more so that a row of the
+    batch spans an odd number of 64-byte cache lines (module docstring). A batch computed a tile at a time
+    (:func:`tiled`) is not padded."""
     item = jnp.dtype(dtype).itemsize
     lines = -(-size * item // 64)
-    if size < 64 or lines % 2 or size > TILE:
+    if size < 64 or lines % 2 or tiled(size, dtype, shape):
         return size
     return (lines + 1) * 64 // item
