@@ -64,7 +64,8 @@ def command() -> str:
     words = ["python", script.as_posix(), *sys.argv[1:]]
     if hasattr(os, "sched_getaffinity") and len(os.sched_getaffinity(0)) < (os.cpu_count() or 1):
         words = ["taskset", "-c", ",".join(map(str, sorted(os.sched_getaffinity(0)))), *words]
-    switches = [f"{k}={os.environ[k]}" for k in ("JAXSKID_NATIVE", "JAXSKID_SYNC_DISPATCH", "JAXSKID_MALLOC")
+    switches = [f"{k}={os.environ[k]}" for k in ("JAXSKID_NATIVE", "JAXSKID_SYNC_DISPATCH", "JAXSKID_MALLOC",
+                                                 "JAXSKID_RECYCLE")
                 if k in os.environ]
     return shlex.join([*switches, *words]) if switches else shlex.join(words)
 

@@ -6,7 +6,7 @@ clears each page of it when the program first writes there: for the G1's regress
 276 MB result) the clearing costs more than computing the result. So each quantity keeps the last
 :data:`KEPT` results of at least :data:`MIN_BYTES` that it returned to Python. A call whose result would have
 the shape, dtype and device of one of them that only this pool references is given it as ``out`` (donated,
-as :meth:`jaxskid.Dynamics.mass_matrix`'s ``out=`` does), and the result is written into its memory. Two,
+as a quantity's own ``out=`` is), and the result is written into its memory. Two,
 so that a loop ``Y = dyn.regressor(q, qd, qdd)`` reuses the result before last while it holds the last.
 A large call with none to reuse is given a new array, so that a quantity compiles one program per shape
 (an ``out`` changes the program).
@@ -14,6 +14,8 @@ A large call with none to reuse is given a new array, so that a quantity compile
 An array you reference, directly, through a container or through a NumPy view of its memory, is never taken.
 The pool holds at most :data:`KEPT` results per quantity beyond those you hold, until the
 :class:`~jaxskid.Dynamics` is freed; ``JAXSKID_RECYCLE=0`` in the environment turns it off.
+
+:func:`check_out` and :func:`check_donated` check an ``out`` the caller passes.
 """
 
 from __future__ import annotations
@@ -79,7 +81,10 @@ class Recycler:
         return None
 
     def keep(self, result) -> None:
-        """Keep ``result`` (a single-device array), dropping the oldest beyond :data:`KEPT`."""
+        """Keep ``result`` (a single-device array; anything else is not kept), dropping the oldest beyond
+        :data:`KEPT`."""
+        if not isinstance(result, jax.Array) or len(result.devices()) != 1:
+            return
         with self._lock:
             self._arrays.append(result)
             del self._arrays[:-KEPT]
