@@ -5,7 +5,7 @@ against the generated function it replaces (the select-chain form, mapped with `
 Pinocchio's algorithms on its own URDF parser's models (``crba``, ``computeCoriolisMatrix``,
 ``computeJointTorqueRegressor``, and ``C + C^T`` for Ṁ), on the Panda and solo12, and M and the regressor on
 (slow) the G1; gradients with respect to the parameters and the state against central differences (the 3-DOF
-arm of robots/); float32, complex inputs, several reduces (small chunks) and the padded batch.
+arm of robots/); float32, complex inputs, several reduces (small chunks), the padded batch and the tiled one.
 """
 
 from __future__ import annotations
@@ -99,12 +99,16 @@ def test_solo12_against_pinocchio_and_the_select_chains(solo):
 
 
 @pytest.mark.slow
-def test_g1_against_pinocchio_and_the_select_chains():
-    """M and the regressor (its 1,362 distinct entries in eleven reduces: the table built chunk by chunk); C and
-    Ṁ, whose programs XLA compiles for far longer at this size, are checked on the Panda and solo12."""
+def test_g1_against_pinocchio_and_the_select_chains(monkeypatch):
+    """M and the regressor (its 1,362 distinct entries in eleven reduces: the table built chunk by chunk),
+    computed a tile at a time as a large batch is (here seven states in tiles of three, the last overlapping the
+    one before); C and Ṁ, whose programs XLA compiles for far longer at this size, are checked on the Panda and
+    solo12."""
+    monkeypatch.setattr(_gathered, "TILE", 3)
+    monkeypatch.setattr(_gathered, "TILED_BYTES", 0)
     dyn, model = _lowered(G1, names=["mass_matrix", "regressor"])
     assert dyn.n_dof == 29
-    _against_references(dyn, model, batch=(4,))
+    _against_references(dyn, model, batch=(7,))
 
 
 @pytest.mark.parametrize("name", MATRICES)

@@ -8,6 +8,8 @@ a NumPy view) never overwritten, nothing recycled inside a caller's ``jit`` or w
 
 from __future__ import annotations
 
+import warnings
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -46,7 +48,8 @@ def test_the_pool_takes_only_what_nothing_else_references():
 
 
 def test_which_calls_are_recycled(monkeypatch):
-    """Real arrays of one floating dtype on the CPU, from MIN_BYTES on; the batch broadcast over the arguments."""
+    """Real arrays of one floating dtype on the CPU, from MIN_BYTES to MAX_BYTES; the batch broadcast over the
+    arguments."""
     q32, q64 = np.zeros((8, 7), np.float32), jnp.zeros((8, 7))
     params = (None, (70,))
     assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) is None  # 3 kB
@@ -59,6 +62,8 @@ def test_which_calls_are_recycled(monkeypatch):
         assert _recycle.recycled_result(states, params, (7, 7)) is None
     assert _recycle.recycled_result([(q64, (7,))], (jnp.zeros(70, jnp.complex64), (70,)), (7,)) is None
     assert _recycle.recycled_result([(q64, (7,)), (q64[:3], (7,))], params, (7,)) is None  # the call's error
+    monkeypatch.setattr(_recycle, "MAX_BYTES", 8 * 7 * 7 * 8 - 1)
+    assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) is None  # one byte too many
     monkeypatch.setenv(_recycle.VARIABLE, "0")
     assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) is None
 
@@ -135,3 +140,36 @@ def test_nothing_is_recycled_inside_a_trace_or_when_turned_off(monkeypatch, pand
     assert given == []
     for m in (traced, off):
         np.testing.assert_allclose(m, np.stack([_crba(model, x) for x in q]), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("native", ["0", "1"])
+def test_every_quantity_recycles_to_the_same_values(monkeypatch, native):
+    """Each quantity of the 3-DOF arm of robots/ (its end-effector's wrenches, the pullbacks' cotangents), with
+    every result recycled, called three times on other states: the values of calls with recycling off, and no
+    warning (a donated buffer XLA could not use would warn); every quantity but two takes an earlier result."""
+    from helpers import ROBOTS_DIR
+
+    monkeypatch.setenv("JAXSKID_NATIVE", native)
+    robot = jaxskid.load(ROBOTS_DIR / "arm_3dof.yaml")
+    names = [n for n, spec in jaxskid.QUANTITIES.items() if not spec.needs_constraints]
+    dyn = jaxskid.lower(robot, quantities=names)
+    given, unpooled = _taken(monkeypatch), set()
+    rng = np.random.default_rng(5)
+    for name in names:
+        fn, args = getattr(dyn, name), dyn.signature(name)[0]
+        calls = [[rng.uniform(-1, 1, (5, *dyn.argument_shape(a))) for a in args] for _ in range(3)]
+        with monkeypatch.context() as off:
+            off.setenv(_recycle.VARIABLE, "0")
+            expected = [np.asarray(jax.tree_util.tree_leaves(fn(*c))[0]) for c in calls]
+        del given[:]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            for c, e in zip(calls, expected):
+                got = jax.tree_util.tree_leaves(fn(*c))[0]
+                np.testing.assert_array_equal(got, e, err_msg=name)
+                del got
+        unpooled.update({name} if not given else set())
+        assert given in ([], [False, True, True]), name
+    # the poses are a dict of arrays; forward dynamics is a method of its own (a vector: large only for a batch
+    # of millions)
+    assert unpooled == {"forward_kinematics", "forward_dynamics"}

@@ -4,12 +4,12 @@ that nothing references any more.
 glibc's allocator maps every block above its mmap threshold (32 MiB at most) afresh, and the operating system
 clears each page of it when the program first writes there: for the G1's regressor at a batch of 4,096 (a
 276 MB result) the clearing costs more than computing the result. So each quantity keeps the last
-:data:`KEPT` results of at least :data:`MIN_BYTES` that it returned to Python. A call whose result would have
-the shape, dtype and device of one of them that only this pool references is given it as ``out`` (donated,
-as a quantity's own ``out=`` is), and the result is written into its memory. Two,
-so that a loop ``Y = dyn.regressor(q, qd, qdd)`` reuses the result before last while it holds the last.
-A large call with none to reuse is given a new array, so that a quantity compiles one program per shape
-(an ``out`` changes the program).
+:data:`KEPT` results from :data:`MIN_BYTES` to :data:`MAX_BYTES` that it returned to Python. A call whose
+result would have the shape, dtype and device of one of them that only this pool references is given it as
+``out`` (donated, as a quantity's own ``out=`` is), and the result is written into its memory. Two, so that a
+loop ``Y = dyn.regressor(q, qd, qdd)`` reuses the result before last while it holds the last. A large call
+with none to reuse is given a new array, so that a quantity compiles one program per shape (an ``out``
+changes the program).
 
 An array you reference, directly, through a container or through a NumPy view of its memory, is never taken.
 The pool holds at most :data:`KEPT` results per quantity beyond those you hold, until the
@@ -34,6 +34,10 @@ from .._errors import ShapeError
 MIN_BYTES = 32 * 2**20
 """Results from this size on are recycled: glibc's largest mmap threshold, above which every block is mapped
 afresh."""
+
+MAX_BYTES = 2**30
+"""Results above this size are not kept: the pool would hold gigabytes you dropped, where the pages' clearing
+costs a call a fraction of its time."""
 
 KEPT = 2
 """Results kept per quantity (module docstring)."""
@@ -120,8 +124,8 @@ def check_donated(name: str, out, inputs) -> None:
 
 def recycled_result(states, params, shape: tuple) -> tuple | None:
     """``(result shape, dtype, device)`` of a call from Python whose result is recycled, or None where it is
-    not: a result smaller than :data:`MIN_BYTES`, states that are not real arrays of one floating dtype (or
-    integers), complex parameters, arrays on several devices or off the CPU.
+    not: a result smaller than :data:`MIN_BYTES` or larger than :data:`MAX_BYTES`, states that are not real
+    arrays of one floating dtype (or integers), complex parameters, arrays on several devices or off the CPU.
 
     ``states``, ``params``: ``(value, trailing shape)`` of the state arguments and of the packed parameters
     (``None``: the defaults); ``shape``: the result's shape for one state. The dtype is the states' (as the
@@ -157,7 +161,7 @@ def recycled_result(states, params, shape: tuple) -> tuple | None:
         result = (*np.broadcast_shapes(*leads), *shape)
     except ValueError:
         return None  # the call names the shapes
-    if math.prod(result) * dtype.itemsize < MIN_BYTES:
+    if not MIN_BYTES <= math.prod(result) * dtype.itemsize <= MAX_BYTES:
         return None
     return result, dtype, device
 
