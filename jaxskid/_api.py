@@ -8,6 +8,7 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
+from ._gc import gc_paused
 from ._errors import ModelError, RequestError, unknown_names
 from .codegen import Layout
 from .codegen._c import emit_c, native_block, native_sources
@@ -54,6 +55,7 @@ def _check_options(source: str, ext: str, lock, drives, options: Mapping) -> Non
             raise ModelError(f"expected true or false, got {describe_value(value)}", where=name, source=source)
 
 
+@gc_paused
 def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, drives: bool = False,
          dialect: str = "jaxskid", end_effectors=None, **options) -> Robot:
     """Read a robot from ``.urdf``, ``.yaml``/``.yml`` or ``.json`` (chosen by the file extension).
@@ -101,6 +103,7 @@ def load(path: str | os.PathLike, *, lock: Mapping[str, float] | None = None, dr
     return with_end_effectors(robot, end_effectors, source=str(p)) if placed else robot
 
 
+@gc_paused
 def lower(
     model: Robot | Equations,
     quantities: Sequence[str] | str | None = None,

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
+from .._gc import gc_paused
 from .._errors import RequestError, unknown_names
 from ..model._constraint import n_rows
 from ..model._robot import Robot
@@ -187,6 +188,7 @@ def _arguments(robot: Robot, inputs: Inputs) -> dict[str, Argument]:
     return {k: Argument(k, shape, inputs.by_name(k), docs[k]) for k, shape in shapes.items()}
 
 
+@gc_paused
 def derive(
     robot: Robot,
     quantities: Sequence[str] | str | None = None,

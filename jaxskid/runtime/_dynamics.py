@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._gc import paused_gc
 from .._errors import unknown_names, RequestError, ShapeError
 from .._generated import GPU_ONLY, GeneratedModule, NativeBuild
 from ._base import QuantitySet, metadata_fields
@@ -437,7 +438,8 @@ class Dynamics(QuantitySet):
             elif recycler is not None and top_level(state):  # a large result takes an earlier one's memory
                 kept = recycled_result([*zip(state, cores)], (params, n_params), shape)
                 out = None if kept is None else recycler.out(*kept)
-            result = compiled(*state, params=params, out=out)
+            with paused_gc():  # the first call traces the program (jaxskid._gc)
+                result = compiled(*state, params=params, out=out)
             if kept is not None:
                 recycler.keep(result)
             if wrench is not None:
