@@ -9,23 +9,29 @@ such a step and on again after it, where it was on; memory that reference counti
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import gc
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 
-@contextlib.contextmanager
-def paused_gc() -> Iterator[None]:
+class _Paused:
+    """The context manager of :func:`paused_gc` (a class: a call's pause costs a fraction of a microsecond)."""
+
+    __slots__ = ("_was_on",)
+
+    def __enter__(self) -> None:
+        self._was_on = gc.isenabled()
+        if self._was_on:
+            gc.disable()
+
+    def __exit__(self, *exc) -> None:
+        if self._was_on:
+            gc.enable()
+
+
+def paused_gc() -> _Paused:
     """The cyclic collector off for the ``with`` block, where it was on (module docstring)."""
-    if not gc.isenabled():
-        yield
-        return
-    gc.disable()
-    try:
-        yield
-    finally:
-        gc.enable()
+    return _Paused()
 
 
 def gc_paused(fn: Callable) -> Callable:

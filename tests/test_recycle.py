@@ -52,20 +52,20 @@ def test_which_calls_are_recycled(monkeypatch):
     arguments."""
     q32, q64 = np.zeros((8, 7), np.float32), jnp.zeros((8, 7))
     params = (None, (70,))
-    assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) is None  # 3 kB
+    assert _recycle.recycled_result([q64], [(7,)], params, (7, 7)) is None  # 3 kB
     monkeypatch.setattr(_recycle, "MIN_BYTES", 0)
-    assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) == ((8, 7, 7), jnp.float64, CPU)
-    assert _recycle.recycled_result([(q32, (7,)), (q32[:1], (7,))], params, (7,)) == ((8, 7), jnp.float32, CPU)
-    assert _recycle.recycled_result([(q64, (7,))], (jnp.zeros((3, 1, 70)), (70,)), (2,)) == ((3, 8, 2),
+    assert _recycle.recycled_result([q64], [(7,)], params, (7, 7)) == ((8, 7, 7), jnp.float64, CPU)
+    assert _recycle.recycled_result([q32, q32[:1]], [(7,), (7,)], params, (7,)) == ((8, 7), jnp.float32, CPU)
+    assert _recycle.recycled_result([q64], [(7,)], (jnp.zeros((3, 1, 70)), (70,)), (2,)) == ((3, 8, 2),
                                                                                               jnp.float64, CPU)
-    for states in ([(q64.astype(jnp.complex128), (7,))], [(q32, (7,)), (q64, (7,))], [(1.0, ())]):
-        assert _recycle.recycled_result(states, params, (7, 7)) is None
-    assert _recycle.recycled_result([(q64, (7,))], (jnp.zeros(70, jnp.complex64), (70,)), (7,)) is None
-    assert _recycle.recycled_result([(q64, (7,)), (q64[:3], (7,))], params, (7,)) is None  # the call's error
+    for states, cores in (([q64.astype(jnp.complex128)], [(7,)]), ([q32, q64], [(7,), (7,)]), ([1.0], [()])):
+        assert _recycle.recycled_result(states, cores, params, (7, 7)) is None
+    assert _recycle.recycled_result([q64], [(7,)], (jnp.zeros(70, jnp.complex64), (70,)), (7,)) is None
+    assert _recycle.recycled_result([q64, q64[:3]], [(7,), (7,)], params, (7,)) is None  # the call's error
     monkeypatch.setattr(_recycle, "MAX_BYTES", 8 * 7 * 7 * 8 - 1)
-    assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) is None  # one byte too many
+    assert _recycle.recycled_result([q64], [(7,)], params, (7, 7)) is None  # one byte too many
     monkeypatch.setenv(_recycle.VARIABLE, "0")
-    assert _recycle.recycled_result([(q64, (7,))], params, (7, 7)) is None
+    assert _recycle.recycled_result([q64], [(7,)], params, (7, 7)) is None
 
 
 @pytest.fixture(params=["jax", "native"], scope="module")

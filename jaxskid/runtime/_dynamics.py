@@ -425,7 +425,8 @@ class Dynamics(QuantitySet):
                 raise ShapeError(f"{name} takes no wrench; expected {call}")
             if takes_wrench and params is not None:
                 self._check_not_a_wrench(name, params, call)
-            if self.checks and top_level(state):
+            outside = top_level(state)
+            if self.checks and outside:
                 check_finite(name, zip(args, state))
             elif self.checks == "debug":  # inside a caller's jit, grad or vmap: a check staged into its program
                 check_inputs("debug", name, [*zip(args, state), ("params", params), ("wrench", wrench)],
@@ -435,8 +436,8 @@ class Dynamics(QuantitySet):
             kept = None
             if out is not None:
                 check_donated(name, out, (*state, params))
-            elif recycler is not None and top_level(state):  # a large result takes an earlier one's memory
-                kept = recycled_result([*zip(state, cores)], (params, n_params), shape)
+            elif recycler is not None and outside:  # a large result takes an earlier one's memory
+                kept = recycled_result(state, cores, (params, n_params), shape)
                 out = None if kept is None else recycler.out(*kept)
             with paused_gc():  # the first call traces the program (jaxskid._gc)
                 result = compiled(*state, params=params, out=out)

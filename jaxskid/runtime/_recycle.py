@@ -122,19 +122,30 @@ def check_donated(name: str, out, inputs) -> None:
                          f"and written: pass an earlier result")
 
 
-def recycled_result(states, params, shape: tuple) -> tuple | None:
+def recycled_result(states, cores, params, shape: tuple) -> tuple | None:
     """``(result shape, dtype, device)`` of a call from Python whose result is recycled, or None where it is
     not: a result smaller than :data:`MIN_BYTES` or larger than :data:`MAX_BYTES`, states that are not real
     arrays of one floating dtype (or integers), complex parameters, arrays on several devices or off the CPU.
 
-    ``states``, ``params``: ``(value, trailing shape)`` of the state arguments and of the packed parameters
-    (``None``: the defaults); ``shape``: the result's shape for one state. The dtype is the states' (as the
+    ``states``, ``cores``: the state arguments and the shape of one state of each; ``params``: ``(value,
+    trailing shape)`` of the packed parameters (``None``: the defaults); ``shape``: the result's shape for one
+    state. The dtype is the states' (as the
     call converts), the batch the broadcast of the leading axes (which the call checks anew).
     """
-    if not enabled():
+    most = math.prod(shape) * 8  # bytes at most (float64, no batch axes shared): small calls end here, cheaply
+    for x, core in zip(states, cores):
+        axes = getattr(x, "shape", None)
+        if axes is None:
+            return None
+        if len(axes) > len(core):
+            most *= math.prod(axes[:len(axes) - len(core)])
+    p, core = params
+    if p is not None and len(getattr(p, "shape", ())) > len(core):
+        most *= math.prod(p.shape[:len(p.shape) - len(core)])
+    if most < MIN_BYTES or not enabled():
         return None
     dtypes, devices, leads = set(), set(), []
-    for k, (x, core) in enumerate([*states, params]):
+    for k, (x, core) in enumerate([*zip(states, cores), params]):
         if x is None:
             continue
         if not isinstance(x, (jax.Array, np.ndarray)) or isinstance(x, jax.core.Tracer):
