@@ -127,11 +127,10 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
     return jnp.take(table, index, axis=1, mode="clip").reshape((batch, *quantity.shape))
 
 
-def _tiled(quantity: GeneratedQuantity, args, batched, batch: int) -> jax.Array:
+def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype) -> jax.Array:
     """``_assembled`` of a large batch (:func:`tiled`), :data:`TILE` states at a time (module docstring): a loop
     whose every pass computes one tile and writes it into the result. The last tile ends with the batch and
     overlaps the one before it, so that no state is padded and the result is not copied."""
-    dtype = jnp.result_type(*args)
 
     def step(k, result):
         start = jnp.minimum(k * TILE, batch - TILE)
@@ -153,8 +152,9 @@ def _one_state(quantity: GeneratedQuantity) -> Callable:
     @one.def_vmap
     def _mapped(size, batched, *args):
         last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
-        if tiled(size, jnp.result_type(*args), quantity.shape):
-            return _tiled(quantity, last, batched, size), True
+        dtype = jnp.result_type(*args)
+        if tiled(size, dtype, quantity.shape):
+            return _tiled(quantity, last, batched, size, dtype), True
         return _assembled(quantity, last, size), True
 
     return one

@@ -129,8 +129,8 @@ def recycled_result(states, cores, params, shape: tuple) -> tuple | None:
 
     ``states``, ``cores``: the state arguments and the shape of one state of each; ``params``: ``(value,
     trailing shape)`` of the packed parameters (``None``: the defaults); ``shape``: the result's shape for one
-    state. The dtype is the states' (as the
-    call converts), the batch the broadcast of the leading axes (which the call checks anew).
+    state. The dtype is the states' (as the call converts), the batch the broadcast of the leading axes (which
+    the call checks anew).
     """
     most = math.prod(shape) * 8  # bytes at most (float64, no batch axes shared): small calls end here, cheaply
     for x, core in zip(states, cores):
