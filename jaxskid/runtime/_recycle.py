@@ -132,19 +132,22 @@ def recycled_result(states, cores, params, shape: tuple) -> tuple | None:
     state. The dtype is the states' (as the call converts), the batch the broadcast of the leading axes (which
     the call checks anew).
     """
-    most = math.prod(shape) * 8  # bytes at most (float64, no batch axes shared): small calls end here, cheaply
-    for x, core in zip(states, cores):
+    leads = []  # the leading (batch) axes of each argument, from shapes alone: small calls end cheaply
+    for x, core in (*zip(states, cores), params):
         axes = getattr(x, "shape", None)
         if axes is None:
+            if x is None:
+                continue
             return None
-        if len(axes) > len(core):
-            most *= math.prod(axes[:len(axes) - len(core)])
-    p, core = params
-    if p is not None and len(getattr(p, "shape", ())) > len(core):
-        most *= math.prod(p.shape[:len(p.shape) - len(core)])
-    if most < MIN_BYTES or not enabled():
+        if len(axes) > len(core):  # an argument without batch axes broadcasts with any batch
+            leads.append(tuple(axes[:len(axes) - len(core)]))
+    batch = () if not leads else leads[0] if all(lead == leads[0] for lead in leads) else _broadcast(leads)
+    if batch is None:
+        return None  # the call names the shapes
+    result = (*batch, *shape)
+    if math.prod(result) * 8 < MIN_BYTES or not enabled():  # 8: the largest real itemsize
         return None
-    dtypes, devices, leads = set(), set(), []
+    dtypes, devices = set(), set()
     for k, (x, core) in enumerate([*zip(states, cores), params]):
         if x is None:
             continue
@@ -158,7 +161,6 @@ def recycled_result(states, cores, params, shape: tuple) -> tuple | None:
             return None
         if k < len(states):
             dtypes.add(np.dtype(x.dtype))
-        leads.append(x.shape[:max(x.ndim - len(core), 0)])
     floats = {d for d in dtypes if d.kind == "f"}
     if len(devices) > 1 or len(floats) > 1:
         return None
@@ -168,13 +170,17 @@ def recycled_result(states, cores, params, shape: tuple) -> tuple | None:
     device = devices.pop() if devices else _default_device()
     if device is None or device.platform != "cpu":
         return None
-    try:
-        result = (*np.broadcast_shapes(*leads), *shape)
-    except ValueError:
-        return None  # the call names the shapes
     if not MIN_BYTES <= math.prod(result) * dtype.itemsize <= MAX_BYTES:
         return None
     return result, dtype, device
+
+
+def _broadcast(leads: list) -> tuple | None:
+    """The broadcast of the batch shapes ``leads``, or None where they do not broadcast."""
+    try:
+        return tuple(np.broadcast_shapes(*leads))
+    except ValueError:
+        return None
 
 
 def _default_device():
