@@ -10,6 +10,8 @@ arm of robots/); float32, complex inputs, several reduces (small chunks), the pa
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -214,3 +216,35 @@ def test_a_padded_batch_gives_each_state_its_own_result(panda):
     got = dyn.mass_matrix(q)
     assert got.shape == (64, dyn.n_dof, dyn.n_dof)
     np.testing.assert_allclose(got, _select_chains(dyn, "mass_matrix", [q]), rtol=1e-12, atol=1e-13)
+
+
+def test_one_state_outside_vmap_runs_on_the_host(panda):
+    """The gathered function called on one state, outside ``jax.vmap`` (the runtime maps it always): its host
+    callback gives the generated function's result, plainly and under ``jax.jit``."""
+    dyn, model = panda
+    q, qd, _ = (x[0] for x in _states(dyn.n_dof, (1,), seed=5))
+    fn = _gathered.gathered(dyn.module.quantities["coriolis_matrix"])
+    p = dyn.param_vector()
+    want = dyn.generated("coriolis_matrix")(q, qd, p)
+    np.testing.assert_allclose(fn(q, qd, p), want, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(jax.jit(fn)(q, qd, p), want, rtol=1e-13, atol=1e-13)
+    ref = _pinocchio(model, "coriolis_matrix", np.asarray(q), np.asarray(qd), None)
+    np.testing.assert_allclose(fn(q, qd, p), ref, rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
+
+
+def test_a_batch_traces_the_program_once(panda):
+    """Mapped, the program is traced for the rule alone (not also for the unmapped function, which JAX traces
+    for its result's shape)."""
+    dyn, _ = panda
+    quantity = dyn.module.quantities["mass_matrix"]
+    calls = []
+    program = quantity.program
+
+    def counted(*args, **kwargs):
+        calls.append(kwargs.get("entries", False))
+        return program(*args, **kwargs)
+
+    q = _states(dyn.n_dof, (4,), seed=6)[0]
+    fn = _gathered.gathered(dataclasses.replace(quantity, program=counted))
+    jax.jit(jax.vmap(fn, in_axes=(0, None))).lower(q, dyn.param_vector())
+    assert calls == [True]

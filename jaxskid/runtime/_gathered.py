@@ -143,11 +143,16 @@ def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype) -> jax
 def _one_state(quantity: GeneratedQuantity) -> Callable:
     """``_assembled`` of one state, which ``jax.vmap`` maps by tracing the program once on vectors of the batch
     (``custom_vmap``) instead of through its batching of every scalar operation: the G1's Coriolis matrix
-    (27,000 operations) traced in 3.0 s and lowered to XLA in 0.35 s so, in 3.6 s and 2.5 s through ``vmap``."""
+    (27,000 operations) traced in 3.0 s and lowered to XLA in 0.35 s so, in 3.6 s and 2.5 s through ``vmap``.
+
+    JAX traces a ``custom_vmap``'s own function at every call, mapped or not, for the result's shape. The
+    runtime calls this one only under ``jax.vmap``, where the rule runs instead, so that function is the
+    program on the host (:func:`_on_host`): tracing the program there too took as long as the rule's own
+    trace (2.8 s of the 5.7 s that tracing and lowering the G1 with hands' Coriolis matrix took)."""
 
     @jax.custom_batching.custom_vmap
     def one(*args):
-        return _assembled(quantity, args)
+        return _on_host(quantity, args)
 
     @one.def_vmap
     def _mapped(size, batched, *args):
@@ -158,6 +163,17 @@ def _one_state(quantity: GeneratedQuantity) -> Callable:
         return _assembled(quantity, last, size), True
 
     return one
+
+
+def _on_host(quantity: GeneratedQuantity, args) -> jax.Array:
+    """The one-state program as a host callback: one equation to trace, and correct, though slow, if it runs."""
+    program = jax.jit(quantity.single())
+
+    def run(*values):
+        return np.asarray(program(*values))
+
+    result = jax.ShapeDtypeStruct(quantity.shape, jnp.result_type(*args))
+    return jax.pure_callback(run, result, *args)
 
 
 def gathered(quantity: GeneratedQuantity) -> Callable:
