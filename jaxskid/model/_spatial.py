@@ -219,14 +219,3 @@ def act_force(r: Sequence[Sequence], p: Sequence, f: Sequence, name: Name = unna
     """
     rf = name(matvec(r, f[3:]))
     return [*add(matvec(r, f[:3]), cross(p, rf)), *rf]
-
-
-def act_inertia(r: Sequence[Sequence], p: Sequence, m: Sequence[Sequence], name: Name = unnamed) -> Rows:
-    """``T^T M T`` with ``T = Ad(C^-1)``: a 6x6 inertia in the frame of ``C``, in its reference frame
-    (Featherstone 2008, eq. 2.66), column by column as ``T^T (M (T e_k))``; the result is symmetric and
-    built from its upper triangle. The hook names ``T e_k``, ``M T e_k``, ``R f`` and each column.
-    """
-    units = [[int(a == k) for a in range(6)] for k in range(6)]
-    cols = [name(act_inv_motion(r, p, e)) for e in units]
-    out = [name(act_force(r, p, name(inertia_apply(m, col)), name)) for col in cols]
-    return [[out[c][a] if a <= c else out[a][c] for c in range(6)] for a in range(6)]

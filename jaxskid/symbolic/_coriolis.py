@@ -11,10 +11,15 @@ factorisation ``B(V)`` of the gyroscopic wrench, ``B(V) V = V x* (M V)``:
   ``C = -J^T (M A a + b^T M) J`` with ``a = diag(ad(X_i) qd_i)``, ``b = diag(ad(V_i))`` and ``-A a J = Jd``,
   as Skidy computes it (``closed_form_inv_dyn_body_fixed``). Its ``C qd`` is the same, its C is not.
 
-Column k is assembled by a Newton-Euler backward pass over the bodies' wrenches ``M_i Jd_{i,k} +
-B(V_i) J_{i,k}``. The Christoffel ``B(V_i)`` is formed once per body as a skew-symmetric matrix
-(:func:`christoffel_matrix`), so that each column costs a body one product with it: the G1's C (29 DOF) has
-26,800 operations so, where the three terms applied per column make 46,600.
+The Skidy factorisation assembles column k by a Newton-Euler backward pass over the bodies' wrenches
+``M_i Jd_{i,k} + B(V_i) J_{i,k}``. The Christoffel one is assembled from the subtrees' composite quantities
+(:func:`christoffel_column_force`): in joint k's frame, the wrench that column k's pass carries into body k
+is ``F_k = 1/2 Ic_k' X_k + 1/2 (Ic_k [V_k, X_k] + V_k x* (Ic_k X_k) + X_k x* h_k)``, with the subtree's
+composite inertia ``Ic_k``, its time derivative and its momentum ``h_k`` (each body's ``M_i V_i`` carried into
+frame k). ``F_k`` carried up the tree gives the entries ``C_jk = X_j^T F_k`` above the diagonal, and
+``dM/dt = C + C^T`` those below: ``C_kj = dM_jk/dt - C_jk``, where ``dM_jk/dt`` comes from the pass of
+:func:`jaxskid.symbolic.mass_matrix_derivative`. The G1 with hands' C (43 DOF, every inertial parameter
+symbolic) has 31,600 operations so, where the column-wise passes make 59,000.
 """
 
 from __future__ import annotations
@@ -26,8 +31,10 @@ import sympy as sp
 from ..model import _spatial as sa
 from ._derivation import Derivation, memoized
 from ._jacobians import jacobian_columns, jacobian_dot_columns
-from ._kinematics import Vec, inertia, twist
+from ._crba import apply_composite
+from ._kinematics import Vec, inertia, screw, to_parent, twist
 from ._rnea import backward
+from ._time_kinematics import composite_inertia_derivative, pulled
 
 
 def skidy_gyro(d: Derivation, m: Sequence[Sequence], v: Sequence, x: Sequence) -> Vec:
@@ -71,8 +78,57 @@ def coriolis_wrench(d: Derivation, i: int, k: int) -> Vec:
     return sa.add(sa.inertia_apply(m, jdk), sa.matvec(christoffel_matrix(d, i), x))
 
 
+@memoized
+def composite_momentum(d: Derivation, i: int) -> Vec:
+    """``h_i``: the momentum of the subtree of body i, each body's ``M_b V_b`` carried into body i's frame."""
+    h = sa.inertia_apply(inertia(d, i), twist(d, i))
+    for c in d.robot.children(i):
+        h = sa.add(h, to_parent(d, c, composite_momentum(d, c)))
+    return d.tape.vec(h)
+
+
+def christoffel_column_force(d: Derivation, i: int, x: Sequence) -> Vec:
+    """``F = 1/2 Ic' X + 1/2 (Ic [V, X] + V x* (Ic X) + X x* h)`` in body i's frame for its screw ``X`` (module
+    docstring): ``sum_b T_b^T (M_b Jd_b + B(V_b) J_b)`` over the subtree of body i, ``J_b = T_b X``."""
+    v = twist(d, i)
+    rate = sa.inertia_apply(composite_inertia_derivative(d, i, 1).tolist(), x)
+    gyro = sa.add(apply_composite(d, i, sa.ad_apply(v, x)), sa.coad_apply(v, apply_composite(d, i, x)),
+                  sa.coad_apply(x, composite_momentum(d, i)))
+    return d.tape.vec([(a + b) / 2 for a, b in zip(rate, gyro)])
+
+
+def _christoffel_coriolis(d: Derivation) -> sp.Matrix:
+    """The Christoffel C from the subtrees' composite quantities (module docstring)."""
+    c = sp.zeros(d.nv)
+    for i in range(d.n):
+        x = screw(d, i)
+        jet = [d.tape.vec(apply_composite(d, i, x)),
+               d.tape.vec(sa.inertia_apply(composite_inertia_derivative(d, i, 1).tolist(), x))]
+        f = christoffel_column_force(d, i, x)
+        a = d.position(i)
+        c[a, a] = d.tape(sa.dot(x, f))
+        j = i
+        while j >= 0 and d.is_body(d.robot.joints[j].parent):
+            jet = [pulled(d, j, jet, r) for r in range(2)]
+            f = to_parent(d, j, f)
+            j = d.robot.joints[j].parent
+            rows = [(d.position(j), screw(d, j))] if j >= 0 else [(r, [sp.Integer(int(s == r)) for s in range(6)])
+                                                                   for r in range(6)]
+            for b, xj in rows:
+                c[b, a] = d.tape(sa.dot(xj, f))
+                c[a, b] = d.tape(sa.dot(xj, jet[1]) - c[b, a])
+    if d.floating:
+        for col in range(6):
+            e = [sp.Integer(int(r == col)) for r in range(6)]
+            for r, entry in enumerate(christoffel_column_force(d, -1, e)):
+                c[r, col] = entry
+    return c
+
+
 def coriolis_matrix(d: Derivation) -> sp.Matrix:
     """C(q, qd), nv x nv (a floating base's column keys :data:`~._derivation.BASE_COLUMNS` included)."""
+    if d.coriolis != "skidy":
+        return _christoffel_coriolis(d)
     c = sp.zeros(d.nv)
     for k in d.columns:
         wrenches = {i: coriolis_wrench(d, i, k) for i in d.bodies if k in jacobian_columns(d, i)}

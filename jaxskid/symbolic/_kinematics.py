@@ -147,11 +147,6 @@ def to_parent(d: Derivation, i: int, f: Sequence) -> Vec:
     return d.tape.vec(sa.act_force(*relative(d, i), f, d.tape.vec))
 
 
-def to_parent_inertia(d: Derivation, i: int, m: Sequence[Sequence]) -> sp.Matrix:
-    """``T_i^T M T_i``: a 6x6 inertia in body i's frame, expressed in its parent's frame."""
-    return sp.Matrix(sa.act_inertia(*relative(d, i), m, d.tape.vec))
-
-
 # ---------------------------------------------------------------------------------------------- motion
 @memoized
 def twist(d: Derivation, i: int) -> Vec:
