@@ -13,7 +13,8 @@ steps whose cost is linear in the entries:
    At most :data:`CHUNK` outputs per reduce (XLA refuses a kernel of more than 1,000 outputs, and long
    kernels run slower), taken in the order the program computes them (the order of the generated entries),
    so that a reduce's outputs share their statements: in row-major order, the five reduces of the G1 with
-   hands' Coriolis matrix ran 3.0 times its 57,800 statements between them, in the program's order 1.4 times;
+   hands' Coriolis matrix in its column-wise form ran 3.0 times its 57,800 statements between them, in the
+   program's order 1.4 times;
 2. the outputs stacked into a ``(batch, distinct + 1)`` array, its last column zero; beyond :data:`STAGED`
    chunks, each chunk's outputs are stacked apart, behind optimization barriers, and the chunks concatenated;
 3. one gather with a constant index, which also places the zeros and the repeated entries.
@@ -47,9 +48,14 @@ CHUNK = 128
 """Outputs of one reduce, at most (module docstring, step 1). The outputs come in the order the program computes
 them, so that a reduce's share most of their statements; long kernels run slower per operation (LLVM's code
 for them spills more), and chunks of 100-150 outputs ran fastest: the reduces of the G1 with hands' Coriolis
-matrix (43 DOF, 569 outputs, 58,000 operations) took 10.5 ms at batch 4,104 in chunks of 128, 27.3 ms in chunks of
-300, 18.8 ms in chunks of 50; its regressor's 14.5, 46.4 and 16.0 ms; its mass matrix's 1.8, 4.5 and 2.1 ms
-(compile times within 10 %)."""
+matrix in its column-wise form (43 DOF, 569 outputs, 58,000 operations) took 10.5 ms at batch 4,104 in chunks
+of 128, 27.3 ms in chunks of 300, 18.8 ms in chunks of 50; its regressor's 14.5, 46.4 and 16.0 ms; its mass
+matrix's 1.8, 4.5 and 2.1 ms (compile times within 10 %). Chunks of 128 also compile fastest: the regressor in
+18.4 s (one core), in 20.8 s in chunks of 64 and in 20.1 s in chunks of 256, though those repeat 2.9 and 1.6
+times its statements between them, against 2.2 times. Computing the statements that several chunks share once,
+in reduces of their own whose outputs the chunks read, compiled slower still (the regressor's XLA compile 19.6
+instead of 15.6 s on two cores, its Coriolis matrix's 21.4 instead of 15.4): LLVM's loop vectorizer then
+analyses every pair of the hundreds of arrays a kernel reads and the arrays it writes."""
 
 LANES = 2
 """The reduced axis: two copies of every value."""
