@@ -248,3 +248,23 @@ def test_a_batch_traces_the_program_once(panda):
     fn = _gathered.gathered(dataclasses.replace(quantity, program=counted))
     jax.jit(jax.vmap(fn, in_axes=(0, None))).lower(q, dyn.param_vector())
     assert calls == [True]
+
+
+def test_vectors_against_pinocchio_and_the_select_chains():
+    """solo12's inverse and forward dynamics (12 entries: their batches run in the gathered form too) against
+    ``rnea`` and ``aba`` and against the generated functions mapped with ``jax.vmap``."""
+    dyn, model = _lowered(SOLO, names=["inverse_dynamics", "forward_dynamics"])
+    assert dyn.mapped("inverse_dynamics") is not dyn.generated("inverse_dynamics")
+    q, qd, qdd = _states(dyn.n_dof, (3, 5), seed=8)
+    flat = [np.asarray(x).reshape(-1, dyn.n_dof) for x in (q, qd, qdd)]
+    data = model.createData()
+    tau = dyn.inverse_dynamics(q, qd, qdd).reshape(-1, dyn.n_dof)
+    acc = dyn.forward_dynamics(q, qd, qdd).reshape(-1, dyn.n_dof)  # qdd's values as torques
+    for got, name in ((tau, "inverse_dynamics"), (acc, "forward_dynamics")):
+        chains = _select_chains(dyn, name, [jnp.asarray(x) for x in flat])
+        np.testing.assert_allclose(got, chains, rtol=1e-12, atol=1e-12 * float(jnp.abs(chains).max()))
+    for k in range(len(flat[0])):
+        ref_tau = pin.rnea(model, data, *(x[k] for x in flat))
+        np.testing.assert_allclose(tau[k], ref_tau, rtol=0, atol=1e-9 * max(1.0, np.abs(ref_tau).max()))
+        ref_acc = pin.aba(model, data, *(x[k] for x in flat))
+        np.testing.assert_allclose(acc[k], ref_acc, rtol=0, atol=1e-9 * max(1.0, np.abs(ref_acc).max()))

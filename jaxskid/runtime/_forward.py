@@ -73,7 +73,7 @@ def accelerations(dyn, batched: bool = True, autodiff: str = "forward") -> Calla
     require_solver(dyn, "forward_dynamics")
 
     def raw(name: str) -> Callable:
-        return dyn.generated(name, batched)
+        return dyn.mapped(name) if batched else dyn.generated(name, False)
 
     if "forward_dynamics" in dyn.quantities:
         solve = raw("forward_dynamics")
