@@ -268,3 +268,26 @@ def test_vectors_against_pinocchio_and_the_select_chains():
         np.testing.assert_allclose(tau[k], ref_tau, rtol=0, atol=1e-9 * max(1.0, np.abs(ref_tau).max()))
         ref_acc = pin.aba(model, data, *(x[k] for x in flat))
         np.testing.assert_allclose(acc[k], ref_acc, rtol=0, atol=1e-9 * max(1.0, np.abs(ref_acc).max()))
+
+
+def test_vector_gradients_against_central_differences():
+    """jax.grad of a weighted sum of solo12's batched inverse dynamics (the gathered form), with respect to the
+    parameters and to q, against central differences."""
+    dyn, _ = _lowered(SOLO, names=["inverse_dynamics"])
+    q, qd, qdd = _states(dyn.n_dof, (4,), seed=9)
+    weights = jnp.asarray(np.random.default_rng(10).normal(size=(4, dyn.n_dof)))
+    p = dyn.param_vector()
+
+    def loss(q, p):
+        return jnp.sum(weights * dyn.inverse_dynamics(q, qd, qdd, params=p))
+
+    grads = jax.grad(loss, argnums=(0, 1))(q, p)
+    rng = np.random.default_rng(11)
+    for arg, (x, g) in enumerate(zip((q, p), grads)):
+        direction = jnp.asarray(rng.normal(size=x.shape))
+        h = 1e-6 * float(jnp.abs(x).max())
+        up = [q, p]
+        down = [q, p]
+        up[arg], down[arg] = x + h * direction, x - h * direction
+        central = (loss(*up) - loss(*down)) / (2 * h)
+        assert abs(float(jnp.sum(g * direction) - central)) <= 1e-7 * max(1.0, abs(float(central)))
