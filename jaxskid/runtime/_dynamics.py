@@ -50,8 +50,8 @@ multiply-adds per entry, which stays small beside the program that computes the 
 def _gathers(shape: tuple) -> bool:
     """Whether a batch of a result of ``shape`` runs in the gathered form (:meth:`Dynamics.mapped`): a matrix, or a
     vector of more than 8 entries, on CPU. Inverse dynamics per state at a batch of 4096, one core: solo12's (12
-    entries) 0.08 us so and 0.21 through ``jax.vmap``, the G1 with hands' (43) 0.40 and 1.24, the Panda's (7)
-    0.06 and 0.05."""
+    entries) 0.08 us so and 0.21 through ``jax.vmap``, the Panda's (7) 0.06 and 0.05 (larger vectors:
+    :mod:`jaxskid.runtime._gathered`)."""
     return (len(shape) >= 2 or len(shape) == 1 and shape[0] > 8) and jax.default_backend() == "cpu"
 
 

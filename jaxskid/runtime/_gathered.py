@@ -158,9 +158,11 @@ def _one_state(quantity: GeneratedQuantity) -> Callable:
     program on the host (:func:`_on_host`): tracing the program there too took as long as the rule's own
     trace (2.8 s of the 5.7 s that tracing and lowering the G1 with hands' Coriolis matrix took)."""
 
+    program = jax.jit(quantity.single())
+
     @jax.custom_batching.custom_vmap
     def one(*args):
-        return _on_host(quantity, args)
+        return _on_host(program, quantity.shape, args)
 
     @one.def_vmap
     def _mapped(size, batched, *args):
@@ -173,16 +175,15 @@ def _one_state(quantity: GeneratedQuantity) -> Callable:
     return one
 
 
-def _on_host(quantity: GeneratedQuantity, args) -> jax.Array:
-    """The one-state program as a host callback: a few equations to trace, and correct, though slow, if it runs.
-    The select against a sum of the inputs gives the result the inputs' type under ``jax.shard_map`` (varying over
-    the axes they vary over), which the callback's own result does not have."""
-    program = jax.jit(quantity.single())
+def _on_host(program: Callable, shape: tuple, args) -> jax.Array:
+    """``program`` (the jitted one-state program) as a host callback: a few equations to trace, and correct,
+    though slow, if it runs. The select against a sum of the inputs gives the result the inputs' type under
+    ``jax.shard_map`` (varying over the axes they vary over), which the callback's own result does not have."""
 
     def run(*values):
         return np.asarray(program(*values))
 
-    result = jax.pure_callback(run, jax.ShapeDtypeStruct(quantity.shape, jnp.result_type(*args)), *args)
+    result = jax.pure_callback(run, jax.ShapeDtypeStruct(shape, jnp.result_type(*args)), *args)
     return jnp.where(True, result, sum(jnp.sum(a) for a in args).astype(result.dtype))
 
 

@@ -18,8 +18,8 @@ is ``F_k = 1/2 Ic_k' X_k + 1/2 (Ic_k [V_k, X_k] + V_k x* (Ic_k X_k) + X_k x* h_k
 composite inertia ``Ic_k``, its time derivative and its momentum ``h_k`` (each body's ``M_i V_i`` carried into
 frame k). ``F_k`` carried up the tree gives the entries ``C_jk = X_j^T F_k`` above the diagonal, and
 ``dM/dt = C + C^T`` those below: ``C_kj = dM_jk/dt - C_jk``, where ``dM_jk/dt`` comes from the pass of
-:func:`jaxskid.symbolic.mass_matrix_derivative`. The G1 with hands' C (43 DOF, every inertial parameter
-symbolic) has 31,600 operations so, where the column-wise passes make 59,000.
+:func:`jaxskid.symbolic.mass_matrix_derivative` (the jet of :func:`composite_jet`). The G1 with hands' C (43
+DOF, every inertial parameter symbolic) has 31,600 operations so, where the column-wise passes make 59,000.
 """
 
 from __future__ import annotations
@@ -87,14 +87,25 @@ def composite_momentum(d: Derivation, i: int) -> Vec:
     return d.tape.vec(h)
 
 
-def christoffel_column_force(d: Derivation, i: int, x: Sequence) -> Vec:
-    """``F = 1/2 Ic' X + 1/2 (Ic [V, X] + V x* (Ic X) + X x* h)`` in body i's frame for its screw ``X`` (module
-    docstring): ``sum_b T_b^T (M_b Jd_b + B(V_b) J_b)`` over the subtree of body i, ``J_b = T_b X``."""
+def composite_jet(d: Derivation, i: int, x: Sequence) -> list[Vec]:
+    """``[Ic X, Ic' X]`` in body i's frame: the jet that the pass of
+    :func:`jaxskid.symbolic.mass_matrix_derivative` carries up the tree."""
+    return [d.tape.vec(apply_composite(d, i, x)),
+            d.tape.vec(sa.inertia_apply(composite_inertia_derivative(d, i, 1).tolist(), x))]
+
+
+def christoffel_column_force(d: Derivation, i: int, x: Sequence, jet: Sequence[Vec]) -> Vec:
+    """``F = 1/2 Ic' X + 1/2 (Ic [V, X] + V x* (Ic X) + X x* h)`` in body i's frame for its screw ``X`` and
+    ``jet = composite_jet(d, i, X)`` (module docstring): ``sum_b T_b^T (M_b Jd_b + B(V_b) J_b)`` over the
+    subtree of body i, ``J_b = T_b X``."""
     v = twist(d, i)
-    rate = sa.inertia_apply(composite_inertia_derivative(d, i, 1).tolist(), x)
-    gyro = sa.add(apply_composite(d, i, sa.ad_apply(v, x)), sa.coad_apply(v, apply_composite(d, i, x)),
+    gyro = sa.add(apply_composite(d, i, sa.ad_apply(v, x)), sa.coad_apply(v, jet[0]),
                   sa.coad_apply(x, composite_momentum(d, i)))
-    return d.tape.vec([(a + b) / 2 for a, b in zip(rate, gyro)])
+    return d.tape.vec([(a + b) / 2 for a, b in zip(jet[1], gyro)])
+
+
+def _unit(r: int) -> Vec:
+    return [sp.Integer(int(s == r)) for s in range(6)]
 
 
 def _christoffel_coriolis(d: Derivation) -> sp.Matrix:
@@ -102,9 +113,8 @@ def _christoffel_coriolis(d: Derivation) -> sp.Matrix:
     c = sp.zeros(d.nv)
     for i in range(d.n):
         x = screw(d, i)
-        jet = [d.tape.vec(apply_composite(d, i, x)),
-               d.tape.vec(sa.inertia_apply(composite_inertia_derivative(d, i, 1).tolist(), x))]
-        f = christoffel_column_force(d, i, x)
+        jet = composite_jet(d, i, x)
+        f = christoffel_column_force(d, i, x, jet)
         a = d.position(i)
         c[a, a] = d.tape(sa.dot(x, f))
         j = i
@@ -112,15 +122,14 @@ def _christoffel_coriolis(d: Derivation) -> sp.Matrix:
             jet = [pulled(d, j, jet, r) for r in range(2)]
             f = to_parent(d, j, f)
             j = d.robot.joints[j].parent
-            rows = [(d.position(j), screw(d, j))] if j >= 0 else [(r, [sp.Integer(int(s == r)) for s in range(6)])
-                                                                   for r in range(6)]
+            rows = [(d.position(j), screw(d, j))] if j >= 0 else [(r, _unit(r)) for r in range(6)]
             for b, xj in rows:
                 c[b, a] = d.tape(sa.dot(xj, f))
                 c[a, b] = d.tape(sa.dot(xj, jet[1]) - c[b, a])
     if d.floating:
         for col in range(6):
-            e = [sp.Integer(int(r == col)) for r in range(6)]
-            for r, entry in enumerate(christoffel_column_force(d, -1, e)):
+            e = _unit(col)
+            for r, entry in enumerate(christoffel_column_force(d, -1, e, composite_jet(d, -1, e))):
                 c[r, col] = entry
     return c
 
