@@ -110,10 +110,10 @@ def _distinct(entries: dict, size: int) -> tuple[list, np.ndarray]:
     return values, index
 
 
-def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> jax.Array:
-    """The result of ``quantity``'s program by the gathered form (module docstring): on one state, or with
-    ``batch``, on a batch whose arrays carry it on their last axis (the program reads an entry as a vector of
-    the batch), the result's batch first."""
+def _table(quantity: GeneratedQuantity, args, batch: int | None = None) -> tuple[jax.Array, np.ndarray]:
+    """``(table, index)``: steps 1 and 2 of the gathered form (module docstring) on one state, or with ``batch``
+    on a batch whose arrays carry it on their last axis (the program reads an entry as a vector of the batch),
+    and the constant index of step 3."""
     dtype = jnp.result_type(*args)
     lanes_shape = (LANES,) if batch is None else (LANES, batch)
     entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
@@ -129,7 +129,13 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
             outputs = jax.lax.optimization_barrier(tuple(outputs))
         stacked = jnp.stack(outputs, axis=-1)
         columns.append(jax.lax.optimization_barrier(stacked) if staged else stacked)
-    table = jnp.concatenate([*columns, jnp.zeros((*lanes_shape[1:], 1), dtype)], axis=-1)
+    return jnp.concatenate([*columns, jnp.zeros((*lanes_shape[1:], 1), dtype)], axis=-1), index
+
+
+def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> jax.Array:
+    """The result of ``quantity``'s program by the gathered form (module docstring): on one state, or with
+    ``batch``, on a batch whose arrays carry it on their last axis, the result's batch first."""
+    table, index = _table(quantity, args, batch)
     if batch is None:
         return jnp.take(table, index, mode="clip").reshape(quantity.shape)
     return jnp.take(table, index, axis=1, mode="clip").reshape((batch, *quantity.shape))
@@ -138,12 +144,28 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
 def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype) -> jax.Array:
     """``_assembled`` of a large batch (:func:`tiled`), :data:`TILE` states at a time (module docstring): a loop
     whose every pass computes one tile and writes it into the result. The last tile ends with the batch and
-    overlaps the one before it, so that no state is padded and the result is not copied."""
+    overlaps the one before it, so that no state is padded and the result is not copied.
+
+    A tile's table is computed in a branch of a conditional that is always taken (``k >= 0``): XLA's loop
+    passes (loop-invariant code motion, constant sinking, dead-element removal) clone the loop's body each time
+    they change it, and a branch's computation is not part of the body they clone. The G1 with hands' Coriolis
+    matrix (43 DOF) compiled in 16.3 s instead of 18.1 s on one core, its regressor in 18.6 s instead of 19.8 s;
+    they ran as fast (4.1 and 25.3 us per state at a batch of 4,096, against 4.0 and 25.8). The gather stays
+    outside the branch, which would otherwise return the tile's result, a copy of 40 MB for the regressor (it
+    then ran at 39 us per state)."""
 
     def step(k, result):
         start = jnp.minimum(k * TILE, batch - TILE)
         tile = [jax.lax.dynamic_slice_in_dim(a, start, TILE, axis=-1) if b else a for a, b in zip(args, batched)]
-        return jax.lax.dynamic_update_slice_in_dim(result, _assembled(quantity, tile, TILE), start, axis=0)
+        made = {}
+
+        def computed(t):
+            made["table"], made["index"] = _table(quantity, t, TILE)
+            return made["table"]
+
+        table = jax.lax.cond(k >= 0, computed, lambda t: jnp.zeros_like(made["table"]), tile)
+        part = jnp.take(table, made["index"], axis=1, mode="clip").reshape((TILE, *quantity.shape))
+        return jax.lax.dynamic_update_slice_in_dim(result, part, start, axis=0)
 
     return jax.lax.fori_loop(0, -(-batch // TILE), step, jnp.zeros((batch, *quantity.shape), dtype))
 
