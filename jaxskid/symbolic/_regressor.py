@@ -48,8 +48,9 @@ ROTATIONAL = range(4, N_STANDARD)
 rotations, angular velocities and accelerations: :func:`regressor` puts all of them on the tape before the
 entries of ``m`` and ``m c``. Generated code computes the entries in the tape's order, and the gathered form of
 the JAX form (:mod:`jaxskid.runtime._gathered`) groups them into kernels in that order, each kernel computing
-the statements its entries need: so grouped, the G1 with hands' kernels (43 DOF) compute 42,100 statements
-between them instead of 52,200, body by body."""
+the statements its entries need: so grouped, the G1 with hands' kernels (43 DOF) compute 42,500 statements
+between them instead of 52,200 body by body (XLA's optimized program: 72,000 lines instead of 78,000; its
+compile on one core: 18.2 instead of 18.6 s)."""
 
 
 def inertia_columns(y: Sequence) -> list[Vec]:
