@@ -179,7 +179,7 @@ def test_padded_batch():
     assert _gathered.padded_batch(40, jnp.float64) == 40
     assert _gathered.padded_batch(4096, jnp.float64) == 4104
     assert _gathered.padded_batch(4096, jnp.float64, (29, 290)) == 4096  # 276 MB: a tile at a time
-    assert _gathered.tiled(4096, jnp.float64, (29, 290)) and not _gathered.tiled(4096, jnp.float64, (29, 29))
+    assert _gathered.tiled(4096, jnp.float64, (29, 290)) and not _gathered.tiled(4096, jnp.float64, (12, 12))
     assert -(-_gathered.TILE * 8 // 64) % 2 == 1
     for size in (64, 100, 200, 256):
         for dtype in (jnp.float32, jnp.float64):

@@ -31,9 +31,13 @@ import numpy as np
 
 from .._errors import ShapeError
 
-MIN_BYTES = 32 * 2**20
-"""Results from this size on are recycled: glibc's largest mmap threshold, above which every block is mapped
-afresh."""
+MIN_BYTES = 8 * 2**20
+"""Results from this size on are recycled. Above 32 MiB, glibc's largest mmap threshold, every block is mapped
+afresh; below it, whether one is depends on what the process freed before (glibc raises its threshold to the
+size of each mapped block it frees), so results of a few tens of megabytes ran fast or slow with the process's
+history: in one benchmark run the G1 with hands' Coriolis matrix in float32 (29 MB at a batch of 4,096) at 5.6
+us per state, where a run with another history took 2.3. From 8 MiB on, the JAX form's results are also
+computed a tile at a time (:data:`jaxskid.runtime._gathered.TILED_BYTES`): with both, 2.9."""
 
 MAX_BYTES = 2**30
 """Results above this size are not kept: the pool would hold gigabytes you dropped, where the pages' clearing
