@@ -166,7 +166,11 @@ def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype) -> jax
             made["table"], made["index"] = _table(quantity, t, TILE)
             return made["table"]
 
-        table = jax.lax.cond(k >= 0, computed, lambda t: jnp.zeros_like(made["table"]), tile)
+        def skipped(t):  # never taken; its zeros take the table's shape from the branch traced first
+            table = made["table"] if "table" in made else computed(t)
+            return jnp.zeros(table.shape, table.dtype)
+
+        table = jax.lax.cond(k >= 0, computed, skipped, tile)
         part = jnp.take(table, made["index"], axis=1, mode="clip").reshape((TILE, *quantity.shape))
         return jax.lax.dynamic_update_slice_in_dim(result, part, start, axis=0)
 
