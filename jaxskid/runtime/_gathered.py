@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._generated import GeneratedQuantity
+from ._recycle import MIN_BYTES
 
 CHUNK = 128
 """Outputs of one reduce, at most (module docstring, step 1). The outputs come in the order the program computes
@@ -68,14 +69,15 @@ of 4,096 on one core, written into an earlier result, a loop of such tiles ran t
 10.3 instead of 21.2 us per state, the G1 with hands' Coriolis matrix (43 DOF) in 5.0 instead of 8.9 and its
 mass matrix in 2.3 instead of 3.3, with the same results to the last bit."""
 
-TILED_BYTES = 8 * 2**20
-"""Results from this size on are computed a tile at a time, as they are recycled from this size on
-(:data:`jaxskid.runtime._recycle.MIN_BYTES`, which says why): the intermediates of a whole batch are then tens of
-megabytes, which glibc maps afresh or not depending on the process's history. The same benchmark run
-(``benchmarks/scaling.py``, one core, batch 4,096) with this at 32 MiB and at 8 MiB: the G1 with hands' C in
-float32 (29 MB) 5.56 and 2.89 us per state, its Ṁ 4.66 and 2.27, its mass matrix 1.15 and 1.96 (float64: 2.33
-and 2.37); the G1's mass matrix (28 MB in float64) 0.80 and 1.01, its Ṁ 0.92 and 1.20. Below it the loop
-costs more than it spares."""
+TILED_BYTES = MIN_BYTES
+"""Results from this size on are computed a tile at a time: the size from which a call's result is recycled
+(:data:`jaxskid.runtime._recycle.MIN_BYTES`, which says why), so that neither the result nor the intermediates of
+a whole batch (tens of megabytes) are blocks that glibc maps afresh or not depending on the process's history.
+The same benchmark run (``benchmarks/scaling.py``, one core, batch 4,096) with this at 32 MiB and at 8 MiB: the
+G1 with hands' C in float32 (29 MB) 5.56 and 2.89 us per state, its Ṁ 4.66 and 2.27, its mass matrix 1.15 and
+1.96 (float64: 2.33 and 2.37); the G1's mass matrix (28 MB in float64) 0.80 and 1.01, its Ṁ 0.92 and 1.20.
+Below it the loop costs more than it spares."""
+
 
 STAGED = 8
 """Chunks above which the table is built chunk by chunk (module docstring, step 2). One stack of thousands of
