@@ -45,6 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._generated import GeneratedQuantity
+from ._emitted import distinct, values as recorded_values
 from ._recycle import MIN_BYTES
 
 CHUNK = 128
@@ -98,32 +99,18 @@ def _maximum(x: tuple, y: tuple) -> tuple:
     return tuple(jax.lax.max(a, b) for a, b in zip(x, y))
 
 
-def _distinct(entries: dict, size: int) -> tuple[list, np.ndarray]:
-    """``(values, index)``: the distinct values of ``entries`` (``{flat index: value}``; one object stored under
-    several indices counts once) in the dict's order, which is the order the program computes them, and, for
-    each of the result's ``size`` flat indices, the position of its value (``len(values)``, the zero column, where
-    ``entries`` has none)."""
-    values, seen = [], {}
-    index = np.full(size, -1, dtype=np.int32)
-    for k in entries:
-        v = entries[k]
-        if id(v) not in seen:
-            seen[id(v)] = len(values)
-            values.append(v)
-        index[k] = seen[id(v)]
-    index[index < 0] = len(values)
-    return values, index
-
-
 def _table(quantity: GeneratedQuantity, args, batch: int | None = None) -> tuple[jax.Array, np.ndarray]:
     """``(table, index)``: steps 1 and 2 of the gathered form (module docstring) on one state, or with ``batch``
     on a batch whose arrays carry it on their last axis (the program reads an entry as a vector of the batch),
     and the constant index of step 3."""
     dtype = jnp.result_type(*args)
     lanes_shape = (LANES,) if batch is None else (LANES, batch)
-    entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
-    values, index = _distinct(entries, math.prod(quantity.shape))
-    lanes = [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in values]
+    found = recorded_values(quantity, args, lanes_shape)  # jaxskid.runtime._emitted, or traced:
+    if found is None:
+        entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
+        values, index = distinct(entries, math.prod(quantity.shape))
+        found = [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in values], index
+    lanes, index = found
     staged = len(lanes) > STAGED * CHUNK
     columns = []  # each chunk's columns of the table (module docstring, step 2)
     for start in range(0, len(lanes), CHUNK):
