@@ -4,9 +4,9 @@ The recorded program writes the same operations into the lowered module as the t
 last bit: on the Panda (M, C, the regressor and forward dynamics, whose reciprocals are the generated module's
 helper) and a floating double pendulum (M and forward dynamics: the base's quaternion), in float64 with the parameters
 shared and in float32 with them batched, one state and a batch. The gathered form built on it is checked against
-Pinocchio in tests/test_gathered.py. Also here: a program the tape cannot record and arguments of two dtypes are
-traced instead, the primitive's own evaluation, mapping and derivative agree with the traced program's, and its
-trace is one equation, not one per operation.
+Pinocchio in tests/test_gathered.py. Also here: a program the tape cannot record, arguments of two dtypes and
+JAXSKID_RECORD=0 are traced instead, the primitive's own evaluation, mapping and derivative agree with the
+traced program's, and its trace is one equation, not one per operation.
 """
 
 from __future__ import annotations
@@ -86,14 +86,23 @@ def test_floating_base_and_one_state(floating):
                 np.testing.assert_array_equal(e, t)
 
 
-def test_the_table_is_one_equation(panda):
-    """The gathered form's trace holds the program as one equation (a trace of the program holds thousands)."""
+def test_the_table_is_one_equation(panda, monkeypatch):
+    """The gathered form's trace holds the program as one equation; with JAXSKID_RECORD=0, one per operation."""
     quantity = panda.module.quantities["coriolis_matrix"]
     args = _arguments(panda, "coriolis_matrix", (6,), jnp.float64, False)
-    jaxpr = jax.make_jaxpr(lambda *a: _gathered._table(quantity, a, 6)[0])(*args)
-    names = [e.primitive.name for e in jaxpr.jaxpr.eqns]
+
+    def equations():
+        jaxpr = jax.make_jaxpr(lambda *a: _gathered._table(quantity, a, 6)[0])(*args)
+        return [e.primitive.name for e in jaxpr.jaxpr.eqns]
+
+    names = equations()
     assert names.count("jaxskid_recorded_values") == 1
     assert len(names) < 40
+    monkeypatch.setenv("JAXSKID_RECORD", "0")
+    assert _emitted.values(quantity, args, (2, 6)) is None
+    names = equations()
+    assert "jaxskid_recorded_values" not in names
+    assert names.count("mul") > 200
 
 
 def test_unrecorded_programs_are_traced(panda):

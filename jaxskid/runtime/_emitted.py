@@ -15,6 +15,7 @@ are one evaluation of :func:`jaxskid._fused` ``_sincos_here`` (traced, both are 
 
 A program that does anything the tape does not record (an operation on two different dtypes, a function the
 generated module calls that is not one of its helpers) is traced as before: :func:`recorded` returns None.
+``JAXSKID_RECORD=0`` in the environment traces every program (read when a program is lowered), to compare.
 The primitive evaluates, maps (``jax.vmap``) and differentiates in forward mode through that traced program;
 the gathered form itself never asks it to, since its rules run above it.
 """
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import types
 import weakref
 from collections.abc import Callable, Hashable
@@ -38,6 +40,9 @@ from jax.interpreters import ad, batching, mlir
 from .._generated import GeneratedQuantity
 
 log = logging.getLogger("jaxskid")
+
+VARIABLE = "JAXSKID_RECORD"
+"""Set to 0 to trace every program instead of recording it (module docstring)."""
 
 _BINARY = {"add": hlo.add, "sub": hlo.subtract, "mul": hlo.multiply, "div": hlo.divide}
 _UNARY = frozenset({"neg", "pow", "sin", "cos", "call"})
@@ -157,7 +162,10 @@ class Recorded:
 
     def __init__(self, quantity: GeneratedQuantity, ops: tuple, outputs: tuple, index: np.ndarray,
                  sincos: Callable):
-        self.quantity, self.ops, self.outputs, self.index, self.sincos = quantity, ops, outputs, index, sincos
+        self.quantity, self.ops, self.outputs, self.index = quantity, ops, outputs, index
+        # jitted, so that the lowering traces the helpers once per type and calls one function of the module
+        self.sincos = jax.jit(sincos)
+        self.helpers = {f: jax.jit(f) for kind, _, f in ops if kind == "call"}
 
 
 _RECORDED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -201,6 +209,8 @@ def values(quantity: GeneratedQuantity, args, lanes_shape: tuple) -> tuple[list,
     every distinct nonzero entry an array of ``lanes_shape``, as the gathered form's first step needs them; None
     where the program is not recorded or the arguments differ in dtype or are not real floats (then the
     gathered form traces the program)."""
+    if os.environ.get(VARIABLE, "1") == "0":
+        return None
     rec = recorded(quantity)
     dtypes = {jnp.result_type(a) for a in args}
     if rec is None or len(dtypes) != 1 or dtypes.pop() not in (jnp.float32, jnp.float64):
@@ -297,7 +307,7 @@ class _Lowering:
                 self._sincos[a] = self._call(self.recorded.sincos, values[a], 2)
             values[at] = self._sincos[a][kind == "cos"]
         else:  # "call": a helper of the generated module, elementwise
-            values[at] = self._call(b, values[a], 1)[0]
+            values[at] = self._call(self.recorded.helpers[b], values[a], 1)[0]
 
     def _read(self, k: int, entry: tuple):
         """Entry ``entry`` of argument ``k`` broadcast to the output's type; a batched argument carries the batch

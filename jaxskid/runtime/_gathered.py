@@ -102,7 +102,8 @@ def _maximum(x: tuple, y: tuple) -> tuple:
 def _table(quantity: GeneratedQuantity, args, batch: int | None = None) -> tuple[jax.Array, np.ndarray]:
     """``(table, index)``: steps 1 and 2 of the gathered form (module docstring) on one state, or with ``batch``
     on a batch whose arrays carry it on their last axis (the program reads an entry as a vector of the batch),
-    and the constant index of step 3."""
+    and the constant index of step 3. The program's entries are written into the lowered module from its
+    recording (:mod:`jaxskid.runtime._emitted`), or traced where it has none."""
     dtype = jnp.result_type(*args)
     lanes_shape = (LANES,) if batch is None else (LANES, batch)
     found = recorded_values(quantity, args, lanes_shape)  # jaxskid.runtime._emitted, or traced:
