@@ -27,7 +27,7 @@ import math
 import os
 import types
 import weakref
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 
 import jax
 import jax.numpy as jnp
@@ -48,18 +48,18 @@ _BINARY = {"add": hlo.add, "sub": hlo.subtract, "mul": hlo.multiply, "div": hlo.
 _UNARY = frozenset({"neg", "pow", "sin", "cos", "call"})
 
 
-def distinct(entries: dict, size: int, key: Callable[[object], Hashable] = id) -> tuple[list, np.ndarray]:
-    """``(values, index)``: the distinct values of ``entries`` (``{flat index: value}``; values of one ``key``,
-    by default one object stored under several indices, count once) in the dict's order, which is the order the
-    program computes them, and, for each of the result's ``size`` flat indices, the position of its value
-    (``len(values)``, the zero column, where ``entries`` has none)."""
+def distinct(entries: dict, size: int) -> tuple[list, np.ndarray]:
+    """``(values, index)``: the distinct values of ``entries`` (``{flat index: value}``; one object stored under
+    several indices counts once) in the dict's order, which is the order the program computes them, and, for
+    each of the result's ``size`` flat indices, the position of its value (``len(values)``, the zero column,
+    where ``entries`` has none)."""
     values, seen = [], {}
     index = np.full(size, -1, dtype=np.int32)
     for k, v in entries.items():
-        if key(v) not in seen:
-            seen[key(v)] = len(values)
+        if id(v) not in seen:
+            seen[id(v)] = len(values)
             values.append(v)
-        index[k] = seen[key(v)]
+        index[k] = seen[id(v)]
     index[index < 0] = len(values)
     return values, index
 
