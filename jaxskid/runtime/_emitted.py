@@ -2,11 +2,10 @@
 
 The gathered form (:mod:`jaxskid.runtime._gathered`) runs a quantity's program once on vectors of the batch.
 Traced with ``jax.numpy``, every operation of the program costs JAX an equation, its checks and its lowering:
-the G1 with hands' Coriolis matrix (43 DOF, 36,000 operations) took 1.2 s to trace and 0.7 s to lower, a tenth
-of its cold first call. Here the program runs once on :class:`_Value` objects that record each operation on a
-tape (:func:`recorded`, kept per quantity), and one primitive stands for all of its outputs. Its lowering rule
-writes the tape's operations into the module as StableHLO, which took 0.1 s to record and 0.4 s to lower in
-all.
+the G1 with hands' Coriolis matrix (43 DOF, 36,000 operations) takes 1.2 s to trace and 0.7 s to lower, a
+tenth of its cold first call. Here the program runs once on :class:`_Value` objects that record each operation
+on a tape (:func:`recorded`, kept per quantity), and one primitive stands for all of its outputs. Its lowering
+rule writes the tape's operations into the module as StableHLO: 0.1 s to record and 0.4 s to lower in all.
 
 The module is the one the trace makes: the same operations on the same operands in the same order, so the
 results agree to the last bit (``tests/test_emitted.py`` compares them). Two things differ, both in what
@@ -14,7 +13,7 @@ XLA would merge anyway: a constant is broadcast once for all its uses, and the s
 are one evaluation of :func:`jaxskid._fused` ``_sincos_here`` (traced, both are computed for each).
 
 A program that does anything the tape does not record (an operation on two different dtypes, a function the
-generated module calls that is not one of its helpers) is traced as before: :func:`recorded` returns None.
+generated module calls that is not one of its helpers) is traced instead: :func:`recorded` returns None.
 ``JAXSKID_RECORD=0`` in the environment traces every program (read when a program is lowered), to compare.
 The primitive evaluates, maps (``jax.vmap``) and differentiates in forward mode through that traced program;
 the gathered form itself never asks it to, since its rules run above it.
@@ -38,6 +37,7 @@ from jax.extend.mlir.dialects import stablehlo as hlo
 from jax.interpreters import ad, batching, mlir
 
 from .._generated import GeneratedQuantity
+from ._whole import result_aval
 
 log = logging.getLogger("jaxskid")
 
@@ -217,13 +217,17 @@ def values(quantity: GeneratedQuantity, args, lanes_shape: tuple) -> tuple[list,
     return _values_p.bind(*args, recorded=rec, lanes_shape=tuple(lanes_shape)), rec.index
 
 
-def traced_values(recorded: Recorded, lanes_shape: tuple, *args) -> list:
-    """The primitive's outputs by tracing the program with ``jax.numpy`` (its evaluation, mapping and
-    derivatives)."""
+def traced(quantity: GeneratedQuantity, args, lanes_shape: tuple) -> tuple[list, np.ndarray]:
+    """``(values, index)`` as :func:`values` gives them, by tracing the program with ``jax.numpy``."""
     dtype = jnp.result_type(*args)
-    entries = recorded.quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
-    found, _ = distinct(entries, math.prod(recorded.quantity.shape))
-    return [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in found]
+    entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
+    found, index = distinct(entries, math.prod(quantity.shape))
+    return [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in found], index
+
+
+def traced_values(recorded: Recorded, lanes_shape: tuple, *args) -> list:
+    """The primitive's outputs by tracing the program (its evaluation, mapping and derivatives)."""
+    return traced(recorded.quantity, args, lanes_shape)[0]
 
 
 _values_p = Primitive("jaxskid_recorded_values")
@@ -235,16 +239,7 @@ def _impl(*args, recorded, lanes_shape):
 
 
 def _abstract(*avals, recorded, lanes_shape):
-    # Inside jax.shard_map the values vary over the mesh axes their arguments vary over: they take the manual
-    # axis type of the argument of their rank that varies over the most (as jaxskid.runtime._whole's results).
-    dtype = avals[0].dtype
-    same_rank = [a for a in avals if a.ndim == len(lanes_shape)]
-    if same_rank:
-        template = max(same_rank, key=lambda a: len(getattr(getattr(a, "manual_axis_type", None), "varying", ())))
-        aval = template.update(shape=lanes_shape, dtype=dtype, weak_type=False)
-    else:
-        aval = jax.core.ShapedArray(lanes_shape, dtype)
-    return [aval] * len(recorded.outputs)
+    return [result_aval(avals, lanes_shape, avals[0].dtype)] * len(recorded.outputs)
 
 
 def _batch(args, dims, *, recorded, lanes_shape):

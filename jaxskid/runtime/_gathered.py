@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._generated import GeneratedQuantity
-from ._emitted import distinct, values as recorded_values
+from ._emitted import traced, values as recorded_values
 from ._recycle import MIN_BYTES
 
 CHUNK = 128
@@ -106,12 +106,7 @@ def _table(quantity: GeneratedQuantity, args, batch: int | None = None) -> tuple
     recording (:mod:`jaxskid.runtime._emitted`), or traced where it has none."""
     dtype = jnp.result_type(*args)
     lanes_shape = (LANES,) if batch is None else (LANES, batch)
-    found = recorded_values(quantity, args, lanes_shape)  # jaxskid.runtime._emitted, or traced:
-    if found is None:
-        entries = quantity.program(*args, lambda x: jnp.broadcast_to(x, lanes_shape), entries=True)
-        values, index = distinct(entries, math.prod(quantity.shape))
-        found = [jnp.broadcast_to(jnp.asarray(v, dtype), lanes_shape) for v in values], index
-    lanes, index = found
+    lanes, index = recorded_values(quantity, args, lanes_shape) or traced(quantity, args, lanes_shape)
     staged = len(lanes) > STAGED * CHUNK
     columns = []  # each chunk's columns of the table (module docstring, step 2)
     for start in range(0, len(lanes), CHUNK):

@@ -74,13 +74,18 @@ def _impl(*args, fun, shape, store):
 def _abstract(*avals, fun, shape, store):
     strong = [a.dtype for a in avals if not a.weak_type]
     dtype = functools.reduce(jnp.promote_types, strong or [a.dtype for a in avals])
-    # Inside jax.shard_map a result varies over the mesh axes its arguments vary over: it takes the manual
-    # axis type (and sharding) of the argument of its rank that varies over the most.
+    return [result_aval(avals, shape, dtype, weak_type=not strong)]
+
+
+def result_aval(avals, shape: tuple, dtype, weak_type: bool = False):
+    """The type of a primitive's result of ``shape`` and ``dtype`` computed from arguments of types ``avals``.
+    Inside ``jax.shard_map`` a result varies over the mesh axes its arguments vary over: it takes the manual axis
+    type (and sharding) of the argument of its rank that varies over the most."""
     same_rank = [a for a in avals if a.ndim == len(shape)]
     if not same_rank:
-        return [jax.core.ShapedArray(shape, dtype, weak_type=not strong)]
+        return jax.core.ShapedArray(shape, dtype, weak_type=weak_type)
     template = max(same_rank, key=lambda a: len(getattr(getattr(a, "manual_axis_type", None), "varying", ())))
-    return [template.update(shape=shape, dtype=dtype, weak_type=not strong)]
+    return template.update(shape=shape, dtype=dtype, weak_type=weak_type)
 
 
 def _batch(args, dims, *, fun, shape, store):
