@@ -100,10 +100,13 @@ SLOW = {("g1", "coriolis_matrix"), ("g1_hands", "coriolis_matrix"), ("g1_hands",
 """The cases whose JAX form XLA compiles for minutes on a GPU: run after every section."""
 AGREEMENT = {"z1_all": QUANTITIES, "g1": ("mass_matrix", "forward_dynamics", "regressor", "mass_matrix_dot")}
 """The quantities whose kernels ``agreement`` compares with the JAX form computed on the CPU."""
-VARIANTS = {"ptxas -O3": {"JAXSKID_PTXAS_O": "3"}, "256 threads": {"JAXSKID_CUDA_THREADS": "256"},
-            "64 threads": {"JAXSKID_CUDA_THREADS": "64"}, "not split": {"JAXSKID_CUDA_LONG": "1000000"},
-            "pieces of 2048": {"JAXSKID_CUDA_CHUNK": "2048"}, "fused trig": {"JAXSKID_CUDA_TRIG": "fused"}}
+VARIANTS = {"program order": {"JAXSKID_CUDA_ORDER": "program"},
+            "parameters from their input": {"JAXSKID_CUDA_CONSTANT": "0"},
+            "program order; parameters from their input": {"JAXSKID_CUDA_ORDER": "program", "JAXSKID_CUDA_CONSTANT": "0"},
+            "fused trig": {"JAXSKID_CUDA_TRIG": "fused"}, "not split": {"JAXSKID_CUDA_LONG": "1000000"}}
 """The kernel builds ``variants`` measures against the default (:mod:`jaxskid.lowering._cuda`'s settings)."""
+VARIANT_QUANTITIES = ("mass_matrix", "coriolis_matrix", "inverse_dynamics")
+"""The G1's quantities ``variants`` builds each way."""
 SLOW_NEEDS = 120.0
 """Seconds left that a slow case needs to start."""
 RESERVE = 10.0
@@ -315,7 +318,7 @@ def agreement(log: Log, urdf_dir: Path) -> None:
 
 
 def variants(log: Log, urdf_dir: Path, batch: int) -> None:
-    """The section ``variants``: the G1's M and C in CUDA kernels built the default way and each way of
+    """The section ``variants``: the G1's :data:`VARIANT_QUANTITIES` in CUDA kernels built the default way and each way of
     :data:`VARIANTS` (its environment set while lowering and at the first call, which compiles the kernel):
     first call and time per state, float64."""
     for variant, env in {"default": {}, **VARIANTS}.items():
@@ -323,7 +326,7 @@ def variants(log: Log, urdf_dir: Path, batch: int) -> None:
         os.environ.update(env)
         try:
             dyn = lowered(log, urdf_dir, "g1", "cuda", "variants")
-            for quantity in ("mass_matrix", "coriolis_matrix"):
+            for quantity in VARIANT_QUANTITIES:
                 ids = {"robot": "g1", "quantity": quantity, "variant": variant}
                 if dyn is None:
                     unlowered(log, "variants", **ids)
@@ -451,7 +454,10 @@ def versus(fn, args, batch: int, reference: dict, key: str, order) -> dict:
 
 
 ROLLOUTS = {"one kernel": {}, "one kernel (float32)": {}, "one kernel (32 threads)": {"JAXSKID_CUDA_THREADS": "32"},
-            "one kernel (128 threads)": {"JAXSKID_CUDA_THREADS": "128"}, "kernels per step": None}
+            "one kernel (128 threads)": {"JAXSKID_CUDA_THREADS": "128"},
+            "one kernel (program order; parameters from their input)": {"JAXSKID_CUDA_ORDER": "program",
+                                                                        "JAXSKID_CUDA_CONSTANT": "0"},
+            "kernels per step": None}
 """How the ``rollout`` section's rollouts run, all in the form ``--forms`` gives first: the rollout one CUDA kernel
 and its gradient another (:mod:`jaxskid.runtime._cuda_rollout`), with the settings given (and float32 states where
 the name says so), or (None) a loop of steps, with :meth:`jaxskid.Dynamics.cuda_rollout` turned off on its

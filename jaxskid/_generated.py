@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -127,18 +128,20 @@ class NativeBuild(Protocol):
     def build(self) -> Path:
         """The path of the built library (built once per machine); raises when it cannot be built."""
 
-    def cuda_image(self, name: str, dtype: str, arch: str) -> tuple[bytes, int]:
+    def cuda_image(self, name: str, dtype: str, arch: str, shared: bool = True) -> tuple[bytes, int]:
         """The compiled CUDA kernel of the quantity ``name`` for ``dtype`` (``"float32"``/``"float64"``) inputs
-        on ``arch`` (``"sm_90"``), and its threads per block (compiled once per machine)."""
+        on ``arch`` (``"sm_90"``), and its threads per block (compiled once per machine); ``shared``: for calls
+        whose states share the parameters (:func:`constant_input`)."""
 
     def cuda_handler(self) -> Path:
         """The path of the library of the XLA FFI handler that launches the CUDA kernels."""
 
     def cuda_rollout_image(self, vectors: Mapping[str, VectorKernel | None], n: int, n_params: int, steps: int,
-                           dtype: str, arch: str, part: str) -> tuple[bytes, int]:
+                           dtype: str, arch: str, part: str, shared: bool = True) -> tuple[bytes, int]:
         """The compiled CUDA kernel ``part`` (:data:`ROLLOUT_PARTS`) of an RK4 rollout of ``steps`` steps under
         held torques (:mod:`jaxskid.lowering._cuda_rollout`), from the vector programs ``vectors`` of a robot of
-        ``n`` velocities and ``n_params`` parameters, and its threads per block."""
+        ``n`` velocities and ``n_params`` parameters, and its threads per block; ``shared`` as for
+        :meth:`cuda_image`."""
 
 
 ROLLOUT_PROGRAMS = ("forward_dynamics", "mass_matrix", "inverse_dynamics_vjp")
@@ -151,6 +154,21 @@ gradient, and the parameters' part of the gradient, which needs no recursion and
 
 ROLLOUT_STRIDE = 8
 """Steps per thread of the ``parameters`` kernel."""
+
+ROLLOUT_PARAMETERS = {"forward": 2, "adjoint": 2, "parameters": 3}
+"""The input of each rollout kernel that holds the parameters (:func:`rollout_layout`)."""
+
+CONSTANT_MAX = 8192
+"""The most parameters a CUDA kernel reads from constant memory (64 KiB of doubles)."""
+
+
+def constant_input(index: int, size: int, shared: bool) -> int:
+    """``index``, the input of a CUDA kernel that holds its ``size`` parameters, where the kernel reads them from
+    constant memory (the handler copies them there before each call): where every state of the call shares
+    them (``shared``) and they fit, unless ``JAXSKID_CUDA_CONSTANT`` is ``0``; otherwise -1."""
+    if os.environ.get("JAXSKID_CUDA_CONSTANT", "1").strip() == "0":
+        return -1
+    return index if shared and 0 < size <= CONSTANT_MAX else -1
 
 
 def rollout_layout(part: str, n: int, n_params: int, steps: int) -> tuple:

@@ -27,9 +27,11 @@ def _kernels(dyn):
     return found
 
 
-def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), spread=1.0):
+def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), spread=1.0, shared=(True, False)):
     """Each quantity of ``names``: its kernel compiles to PTX for each dtype of ``io``, and built for the host it
-    agrees at 1e-12 with the JAX form, at states drawn from [-spread, spread]."""
+    agrees at 1e-12 with the JAX form, at states drawn from [-spread, spread]. Each kernel of ``shared``: the
+    parameters read from constant memory (True: the handler's copy is the host's, into ``jaxskid_p``), or from
+    their input, shared by every state (the input's step is 0)."""
     kernels = _kernels(dyn)
     assert set(names) <= set(kernels)
     p = np.asarray(dyn.param_vector())
@@ -39,16 +41,47 @@ def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), spread=1.0):
         for dtype in io:
             ptx = _cuda.compile_kernel(_cuda.kernel_source(sources, name, dtype), "compute_90").decode()
             assert ".entry jaxskid_kernel" in ptx and ".f64" in ptx
-        host = _cuda.host_library(_cuda.kernel_source(sources, name), tmp_path)
+            assert (".const .align" in ptx and " jaxskid_p[" in ptx) == (True in shared)
         # a batch of (2, 3): q varies along both axes, the other state arguments along the second only
         states = [spread * rng.uniform(-1, 1, (2, 3, dyn.argument_shape(a)[0]) if k == 0
                                        else (3, dyn.argument_shape(a)[0])) for k, a in enumerate(args)]
-        out = np.full((2, 3, *shape), np.nan)
-        _cuda.run_on_host(host, [*states, p], cores, out, out_rank)
         inner = jax.vmap(dyn.raw(name), in_axes=(*[0] * len(args), None))
         reference_of = jax.vmap(inner, in_axes=(0, *[None] * (len(args) - 1), None))
         want = np.asarray(reference_of(*(jnp.asarray(x) for x in states), jnp.asarray(p)))
-        np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()), err_msg=name)
+        for constant in shared:
+            host = _cuda.host_library(_cuda.kernel_source(sources, name, shared=constant), tmp_path)
+            out = np.full((2, 3, *shape), np.nan)
+            _cuda.run_on_host(host, [*states, p], cores, out, out_rank, len(sizes) - 1 if constant else -1)
+            np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()),
+                                       err_msg=f"{name}, parameters in constant memory: {constant}")
+
+
+def test_thread_order():
+    """:func:`_cuda.thread_order` reads each input just before its first use and writes each output just after
+    the last value it reads, and keeps every statement once."""
+    from jaxskid._generated import Statement, VectorKernel
+
+    kernel = VectorKernel(("q", "p"), (
+        Statement("input", "_q0", "q[0]", ()), Statement("input", "_q1", "q[1]", ()),
+        Statement("input", "_p0", "p[0]", ()), Statement("define", "_x0", "_q0*_p0", ("_q0", "_p0")),
+        Statement("define", "_x1", "_x0*_q1", ("_x0", "_q1")), Statement("output", "0", "_x0", ("_x0",)),
+        Statement("output", "1", "_x1", ("_x1",)), Statement("output", "2", "_p0", ("_p0",))), ())
+    order = [s.name for s in _cuda.thread_order(kernel).statements]
+    assert order == ["_p0", "2", "_q0", "_x0", "0", "_q1", "_x1", "1"]
+    constant = _cuda.constant_parameters(kernel)
+    assert [s.value for s in constant.statements[:3]] == ["q[0]", "q[1]", "jaxskid_p[0]"]
+
+
+def test_program_order_and_parameters_from_their_input(monkeypatch, tmp_path):
+    """JAXSKID_CUDA_ORDER=program (the program's own order, every input read first) and JAXSKID_CUDA_CONSTANT=0
+    (the parameters always from their input) build kernels that agree too."""
+    monkeypatch.setenv("JAXSKID_CUDA_ORDER", "program")
+    monkeypatch.setenv("JAXSKID_CUDA_CONSTANT", "0")
+    names = ["mass_matrix", "forward_dynamics"]
+    dyn = jaxskid.lower(load("panda7"), QUANTITIES)
+    source = _cuda.kernel_source(_kernels(dyn)["mass_matrix"][0], "mass_matrix")
+    assert "jaxskid_p" not in source and "__restrict__" not in source
+    _check(dyn, names, tmp_path, np.random.default_rng(7), io=("float64",), shared=(False,))
 
 
 def test_handler_builds(tmp_path):
@@ -125,6 +158,14 @@ def test_programs_for_a_gpu_call_the_kernels(monkeypatch, tmp_path):
     assert "tensor<16x2xf64>, tensor<1x" in calls[0] and "-> tensor<16x2x2xf64>" in calls[0]
     grads = exported(jax.grad(lambda q: jnp.sum(dyn.mass_matrix(q) ** 2)))
     assert len(grads) == 2 and all(_cuda_target() in line for line in grads)
+    # the states share the parameters: the kernel reads them from constant memory; mapped over, from their input
+    kernel = dyn._cuda_kernels["mass_matrix"]
+    assert set(kernel._ids) == {("float64", True)}
+    p = jnp.stack([dyn.param_vector()] * 16)
+    mapped = exported(lambda q: jax.vmap(lambda qi, pi: dyn.mass_matrix(qi, params=pi))(q, p))
+    assert len(mapped) == 1 and f"tensor<16x{p.shape[1]}xf64>" in mapped[0]
+    assert set(kernel._ids) == {("float64", True), ("float64", False)}
+    assert kernel._ids[("float64", False)] != kernel._ids[("float64", True)]
 
 
 def _cuda_target() -> str:

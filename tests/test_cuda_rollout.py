@@ -38,16 +38,18 @@ def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
     x0[..., :n] *= 40.0
     p, h = np.asarray(dyn.param_vector()), np.array([0.01, 0.02]).reshape(2, 1, 1)
 
-    def run(part, inputs, shape):
+    def run(part, inputs, shape, shared=True):  # the parameters in constant memory, or read from their input
         kernel = kernels[part]
         lib = _cuda.host_library(_cuda_rollout.rollout_source(kernel.vectors, "panda", n, n_params, STEPS,
-                                                              part=part), tmp_path)
-        _, cores, _, out_rank, _ = kernel._layout()
+                                                              part=part, shared=shared), tmp_path)
+        _, cores, _, out_rank, _, constant = kernel._layout(shared)
+        assert (constant >= 0) == shared
         out = np.full(shape, np.nan)
-        _cuda.run_on_host(lib, inputs, cores, out, out_rank)
+        _cuda.run_on_host(lib, inputs, cores, out, out_rank, constant)
         return out
 
     x = run("forward", [x0, u, p, h], (2, 3, STEPS + 1, 2 * n))
+    np.testing.assert_array_equal(run("forward", [x0, u, p, h], x.shape, shared=False), x)
 
     def one(x0, u, p, h):
         return jaxskid.rollout(dyn, x0, u, h[0], STEPS, params=p, autodiff="reverse").x

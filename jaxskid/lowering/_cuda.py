@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._generated import NativeSource
+from .._generated import NativeSource, VectorKernel, constant_input
 from ._ffi import Piece, _chunked
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 from ._templates import fill, template
@@ -85,21 +85,92 @@ def split_sizes() -> tuple[int, int]:
     return tuple(int(os.environ.get(f"JAXSKID_CUDA_{k}") or d) for k, d in (("LONG", LONG), ("CHUNK", CHUNK)))
 
 
-def kernel_source(native: NativeSource, name: str, io: str = "float64") -> str | None:
+CONSTANT = "jaxskid_p"
+"""The array in a kernel's constant memory that holds the parameters when every state shares them."""
+
+ORDER = "thread"
+"""The order of a kernel's statements: ``"thread"`` (:func:`thread_order`, with ``__restrict__`` pointers) or
+``"program"``, the program's own (``JAXSKID_CUDA_ORDER`` sets the other)."""
+
+
+def ordered(kernel: VectorKernel) -> tuple[VectorKernel, bool]:
+    """``kernel`` in the order ``JAXSKID_CUDA_ORDER`` or :data:`ORDER` names, and whether its pointers are
+    ``__restrict__`` (as :func:`jaxskid.lowering._ffi._chunked` takes it)."""
+    kind = os.environ.get("JAXSKID_CUDA_ORDER") or ORDER
+    if kind not in ("thread", "program"):
+        raise ValueError(f"JAXSKID_CUDA_ORDER: expected 'thread' or 'program', got {kind!r}")
+    return (thread_order(kernel), True) if kind == "thread" else (kernel, False)
+
+
+def thread_order(kernel: VectorKernel) -> VectorKernel:
+    """``kernel`` with its statements in an order for one GPU thread: each input read just before the first
+    statement that needs it, each output written just after the last value it reads. The program's own order
+    reads every input first and writes every result last, which keeps them all in registers at once: the G1's
+    M spilled 3.4 KB per thread to local memory, more than the caches hold at a batch of 16,384 states."""
+    statements = kernel.statements
+    pending = {s.name: s for s in statements if s.kind == "input"}
+    position = {s.name: k for k, s in enumerate(statements) if s.kind == "define"}
+    after: dict[int, list] = {}
+    for s in statements:
+        if s.kind == "output":
+            after.setdefault(max((position[v] for v in s.reads if v in position), default=-1), []).append(s)
+    ordered: list = []
+
+    def emit(s) -> None:
+        ordered.extend(pending.pop(v) for v in s.reads if v in pending)
+        ordered.append(s)
+
+    for s in after.get(-1, []):
+        emit(s)
+    for k, s in enumerate(statements):
+        if s.kind in ("input", "output"):
+            continue
+        emit(s)
+        for out in after.get(k, []):
+            emit(out)
+    return kernel._replace(statements=tuple(ordered + list(pending.values())))
+
+
+def constant_parameters(kernel: VectorKernel) -> VectorKernel:
+    """``kernel`` reading its parameters (its last argument) from :data:`CONSTANT`, in constant memory: a value
+    every thread of a warp reads there is an operand of the instruction that uses it, and takes no register."""
+    prefix = f"{kernel.args[-1]}["
+    return kernel._replace(statements=tuple(
+        s._replace(value=CONSTANT + s.value[len(prefix) - 1:]) if s.kind == "input" and s.value.startswith(prefix)
+        else s for s in kernel.statements))
+
+
+def constants(n_params: int | None) -> str:
+    """The declaration of :data:`CONSTANT` for ``n_params`` parameters (none for None): constant memory on the
+    device, an exported array on the host (which :func:`run_on_host` fills)."""
+    if n_params is None:
+        return ""
+    size = max(n_params, 1)
+    return (f"#ifdef __CUDACC_RTC__\n__constant__ io_t {CONSTANT}[{size}];\n#else\nio_t {CONSTANT}[{size}];\n"
+            "#endif")
+
+
+def kernel_source(native: NativeSource, name: str, io: str = "float64", shared: bool = True) -> str | None:
     """The CUDA source of the quantity ``name`` of ``native`` for inputs and result of dtype ``io``
     (``"float32"`` or ``"float64"``), exporting ``jaxskid_kernel(jaxskid_job)``; None where the quantity has
-    no kernel (no vector form)."""
+    no kernel (no vector form). ``shared``: every state of a call has the same parameters, which the kernel
+    reads from constant memory (the handler copies them there before it runs), where they fit
+    (:func:`jaxskid._generated.constant_input`); otherwise from the parameters' input."""
     kernel = native.vectors.get(name)
     entry = next((k for k in native.kernels if k[0] == name), None)
     if kernel is None or entry is None:
         return None
     _, sizes, _, n_out, _ = entry
+    constant = sizes[-1] if constant_input(len(sizes) - 1, sizes[-1], shared) >= 0 else None
+    kernel, restrict = ordered(kernel if constant is None else constant_parameters(kernel))
     long, chunk = split_sizes()
-    functions = _chunked("body", kernel, "D", set(kernel.zeros), io="io_t", long=long, chunk_size=chunk, huge=None)
+    functions = _chunked("body", kernel, "D", set(kernel.zeros), io="io_t", long=long, chunk_size=chunk, huge=None,
+                         restrict=restrict)
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n",
                     fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source(), STEM=native.stem,
-                         NAME=name, FUNCTIONS="".join(f.text() if isinstance(f, Piece) else f for f in functions),
+                         NAME=name, CONSTANTS=constants(constant),
+                         FUNCTIONS="".join(f.text() if isinstance(f, Piece) else f for f in functions),
                          N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
 
 
@@ -248,11 +319,15 @@ class HostJob(ctypes.Structure):
                 ("out", ctypes.c_void_p)]
 
 
-def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int) -> None:
+def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int, constant: int = -1) -> None:
     """Run a :func:`host_library` kernel on contiguous NumPy arrays as the handler runs it on a GPU: ``out``'s
     leading axes (all but its last ``out_rank``) are the batch, input i's last ``cores[i]`` axes hold one
     state's entries and its leading axes broadcast against the batch (right-aligned; an axis of 1, or a missing
-    one, is shared). Zeroes ``out``, then writes it."""
+    one, is shared). ``constant``: the input copied into the kernel's :data:`CONSTANT` first, as the handler
+    copies it into constant memory (-1: none). Zeroes ``out``, then writes it."""
+    if constant >= 0:
+        values = np.ascontiguousarray(inputs[constant]).ravel()
+        ctypes.memmove(ctypes.addressof(ctypes.c_char.in_dll(lib, CONSTANT)), values.ctypes.data, values.nbytes)
     job, nb = HostJob(), out.ndim - out_rank
     out[...] = 0
     for d in range(nb):

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from .._generated import ROLLOUT_PARTS, ROLLOUT_STRIDE, VectorKernel, rollout_layout
-from ._cuda import _IO, split_sizes, threads, trig_source
+from .._generated import ROLLOUT_PARAMETERS, ROLLOUT_PARTS, ROLLOUT_STRIDE, VectorKernel, constant_input, rollout_layout
+from ._cuda import _IO, constant_parameters, constants, ordered, split_sizes, threads, trig_source
 from ._ffi import Piece, _chunked
 from ._ffi_rk4 import RK4_STEP
 from ._templates import fill, template
@@ -43,15 +43,20 @@ def programs_usable(vectors: Mapping[str, VectorKernel | None]) -> bool:
 
 
 def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int, n_params: int, steps: int,
-                   io: str = "float64", part: str = "forward") -> str:
+                   io: str = "float64", part: str = "forward", shared: bool = True) -> str:
     """The CUDA source of the kernel ``part`` (:func:`jaxskid._generated.rollout_layout`) of ``steps`` RK4 steps
     of a robot of ``n`` velocities and ``n_params`` parameters, inputs and results of dtype ``io``, exporting
-    ``jaxskid_kernel(jaxskid_job)`` as the quantity kernels do."""
+    ``jaxskid_kernel(jaxskid_job)`` as the quantity kernels do. ``shared``: every rollout of a call has the same
+    parameters, which the programs read from constant memory where they fit
+    (:func:`jaxskid._generated.constant_input`)."""
     if not programs_usable(vectors):
         raise ValueError("a rollout kernel needs the vector programs of " + ", ".join(q for q, _ in PROGRAMS.values()))
     text, (long, chunk) = [], split_sizes()
+    constant = constant_input(ROLLOUT_PARAMETERS[part], n_params, shared) >= 0
     for function, (quantity, _) in PROGRAMS.items():
-        pieces = _chunked(function, vectors[quantity], "D", set(), io="D", long=long, chunk_size=chunk, huge=None)
+        program, restrict = ordered(constant_parameters(vectors[quantity]) if constant else vectors[quantity])
+        pieces = _chunked(function, program, "D", set(), io="D", long=long, chunk_size=chunk, huge=None,
+                          restrict=restrict)
         text += [p.text() if isinstance(p, Piece) else p for p in pieces]
     n_vjp = sum(s.kind == "output" for s in vectors["inverse_dynamics_vjp"].statements)
     functions = fill(template("cuda_rollout.cu"), STEM=stem, STEPS=steps, N=n, NP=n_params, NV=n_vjp,
@@ -62,5 +67,6 @@ def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int
     head = (f"#define JAXSKID_IO {_IO[io]}\n#define JAXSKID_IO_DOUBLE {int(io == 'float64')}\n"
             f"#define JAXSKID_ROLLOUT_PART {ROLLOUT_PARTS.index(part)}\n")
     return head + fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source("fused"), STEM=stem,
-                       NAME=f"rollout ({part})", FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out,
+                       NAME=f"rollout ({part})", CONSTANTS=constants(n_params if constant else None),
+                       FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out,
                        THREADS=threads())

@@ -121,7 +121,8 @@ short anyway."""
 
 
 def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset(), io: str | None = None,
-             long: int | None = None, chunk_size: int | None = None, huge: int | None = HUGE) -> list[str | Piece]:
+             long: int | None = None, chunk_size: int | None = None, huge: int | None = HUGE,
+             restrict: bool = False) -> list[str | Piece]:
     """The function ``name`` of ``kernel``, split into functions of ``chunk_size`` statements (:data:`CHUNK`)
     that pass the values later pieces read through a workspace, where it has more than ``long``; the outputs
     ``zeros`` are not assigned. GCC's register allocator takes time quadratic in a function's length (the G1's
@@ -129,10 +130,12 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
     linear time, and only the values that cross a boundary go to memory. ``io``: the type the inputs and the
     output point to (``vec`` where None); ``huge``: the length from which GCC builds the pieces at ``-Og``
     (None: never). Left out, ``long`` and ``chunk_size`` are :data:`LONG` and :data:`CHUNK` as they are when
-    called."""
+    called. ``restrict``: the pointers are ``__restrict__`` (none aliases another), and a piece reads each value
+    of an earlier piece just before its first statement that needs it, not at its top (a GPU thread's registers:
+    :func:`jaxskid.lowering._cuda.thread_order`)."""
     long, chunk_size = LONG if long is None else long, CHUNK if chunk_size is None else chunk_size
-    ptr = io or vec
-    params = ", ".join([*(f"const {ptr} *{a}" for a in kernel.args), f"{ptr} *out"])
+    ptr, star = io or vec, " *__restrict__ " if restrict else " *"
+    params = ", ".join([*(f"const {ptr}{star}{a}" for a in kernel.args), f"{ptr}{star}out"])
     statements = kernel.statements
     kept = [s.kind != "output" or int(s.name) not in zeros for s in statements]
     if len(statements) <= long:
@@ -158,9 +161,12 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
         # give makes a new source, and a new build, in every process
         needed = sorted({v for k in chunk for v in statements[k].reads if defined[v] < c // chunk_size},
                         key=lambda v: (slots.get(v, -1), v))
-        text = [inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed]
+        reads = {v: inputs[v] if v in inputs else f"    const {vec} {v} = w[{slots[v]}];" for v in needed}
+        text = [] if restrict else list(reads.values())
         for k in chunk:
             s = statements[k]
+            if restrict:
+                text += [reads.pop(v) for v in s.reads if v in reads]
             if kept[k]:
                 text.append(_line(s, vec))
             if s.kind == "define" and s.name in slots:

@@ -38,10 +38,10 @@ class NativeLibrary:
         root = self.root if self.root is not None else Path(tempfile.mkdtemp(prefix="jaxskid-native-"))
         return ffi_library(self.sources, root)
 
-    def cuda_image(self, name: str, dtype: str, arch: str) -> tuple[bytes, int]:
+    def cuda_image(self, name: str, dtype: str, arch: str, shared: bool = True) -> tuple[bytes, int]:
         """The CUDA kernel of ``name`` compiled for ``dtype`` and ``arch`` (:mod:`._cuda`), and its threads per
         block."""
-        source = kernel_source(self.sources, name, dtype)
+        source = kernel_source(self.sources, name, dtype, shared)
         if source is None:
             raise BuildError(f"{name} has no CUDA kernel (no vector form)")
         return compile_kernel(source, arch, self._folder() / "cuda"), threads()
@@ -56,10 +56,10 @@ class NativeLibrary:
         return handler_library(self._folder() / "cuda")
 
     def cuda_rollout_image(self, vectors, n: int, n_params: int, steps: int, dtype: str, arch: str,
-                           part: str) -> tuple[bytes, int]:
+                           part: str, shared: bool = True) -> tuple[bytes, int]:
         """A rollout kernel (:func:`._cuda_rollout.rollout_source`) compiled for ``dtype`` and ``arch``, and its
         threads per block."""
-        source = rollout_source(vectors, self.sources.stem, n, n_params, steps, dtype, part)
+        source = rollout_source(vectors, self.sources.stem, n, n_params, steps, dtype, part, shared)
         return compile_kernel(source, arch, self._folder() / "cuda", ROLLOUT_PTXAS), threads()
 
     def _folder(self) -> Path:

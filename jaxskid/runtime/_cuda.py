@@ -17,9 +17,13 @@ import os
 import threading
 
 import jax
+import jax.numpy as jnp
 import numpy as np
+from jax.extend.core import Primitive
+from jax.interpreters import batching, mlir
 
-from .._generated import NativeBuild
+from .._generated import NativeBuild, constant_input
+from ._whole import result_aval
 
 TARGET = "jaxskid_cuda_quantity"
 log = logging.getLogger("jaxskid")
@@ -47,7 +51,8 @@ def _handler(build: NativeBuild) -> ctypes.CDLL:
             lib.jaxskid_cuda_register.restype = ctypes.c_int64
             lib.jaxskid_cuda_register.argtypes = [ctypes.c_char_p, ctypes.c_int64, ctypes.c_int,
                                                   ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int64),
-                                                  ctypes.c_int64, ctypes.c_int64, ctypes.c_int, ctypes.c_int]
+                                                  ctypes.c_int64, ctypes.c_int64, ctypes.c_int, ctypes.c_int,
+                                                  ctypes.c_int]
             jax.ffi.register_ffi_target(TARGET, jax.ffi.pycapsule(lib.jaxskid_cuda_quantity), platform="CUDA")
             _HANDLER.append(lib)
         return _HANDLER[0]
@@ -65,36 +70,50 @@ class CudaKernel:
 
     def __init__(self, build: NativeBuild, name: str):
         self.build, self.name = build, name
-        self._ids: dict[str, int] = {}
+        self._ids: dict[tuple[str, bool], int] = {}
 
     def __repr__(self) -> str:
         return f"CudaKernel({self.build.sources.stem}.{self.name})"
 
-    def call(self, dtype) -> tuple[str, dict]:
-        """The FFI target and attributes of a call on ``dtype`` states (compiled and registered on the first)."""
-        key = np.dtype(dtype).name
+    def call(self, dtype, shared: bool = False) -> tuple[str, dict]:
+        """The FFI target and attributes of a call on ``dtype`` states (compiled and registered on the first);
+        ``shared``: every state of the call has the same parameters, which the kernel then reads from constant
+        memory (:meth:`shares` tells from the inputs' types)."""
+        key = (np.dtype(dtype).name, bool(shared))
         if key not in self._ids:
-            image, threads = self._image(key)
-            self._ids[key] = register(self.build, image, threads, *self._layout(), str(self))
+            image, threads = self._image(*key)
+            self._ids[key] = register(self.build, image, threads, *self._layout(key[1]), str(self))
         return TARGET, {"kernel": np.int64(self._ids[key])}
 
-    def _image(self, dtype: str) -> tuple[bytes, int]:
-        return self.build.cuda_image(self.name, dtype, architecture())
+    def _parameters(self) -> tuple[int, int]:
+        """``(input, size)``: which input holds the parameters, and their number."""
+        sizes = next(k for k in self.build.sources.kernels if k[0] == self.name)[1]
+        return len(sizes) - 1, sizes[-1]
 
-    def _layout(self) -> tuple:
-        """``(sizes, cores, n_out, out_rank, zero_first)`` as :func:`register` takes them."""
+    def shares(self, avals) -> bool:
+        """Whether a call on inputs of types ``avals``, as lowered (batch axes included), has one set of
+        parameters for every state."""
+        index, size = self._parameters()
+        return int(np.prod(avals[index].shape, dtype=np.int64)) == size
+
+    def _image(self, dtype: str, shared: bool) -> tuple[bytes, int]:
+        return self.build.cuda_image(self.name, dtype, architecture(), shared)
+
+    def _layout(self, shared: bool) -> tuple:
+        """``(sizes, cores, n_out, out_rank, zero_first, constant)`` as :func:`register` takes them."""
         _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
-        return sizes, cores, n_out, out_rank, bool(self.build.sources.vectors[self.name].zeros)
+        return (sizes, cores, n_out, out_rank, bool(self.build.sources.vectors[self.name].zeros),
+                constant_input(*self._parameters(), shared))
 
 
 def register(build: NativeBuild, image: bytes, threads: int, sizes, cores, n_out: int, out_rank: int,
-             zero_first: bool, label: str) -> int:
+             zero_first: bool, constant: int, label: str) -> int:
     """A compiled kernel registered with the handler (``c/cuda_handler.c``): its number, the attribute ``kernel``
-    of its calls."""
+    of its calls. ``constant``: the input the handler copies into the kernel's constant memory (-1: none)."""
     lib = _handler(build)
     sizes_c, cores_c = (ctypes.c_int64 * len(sizes))(*sizes), (ctypes.c_int64 * len(cores))(*cores)
     kid = lib.jaxskid_cuda_register(image, len(image), len(sizes), sizes_c, cores_c, n_out, out_rank, threads,
-                                    int(zero_first))
+                                    int(zero_first), int(constant))
     if kid < 0:
         raise RuntimeError(f"jaxskid: the CUDA kernel {label} could not be registered")
     return kid
@@ -116,3 +135,51 @@ def cuda_kernel(build: NativeBuild, name: str, label: str) -> CudaKernel | None:
                         " ".join(str(exc).split())[:300])
         return None
     return CudaKernel(build, name)
+
+
+# ---------------------------------------------------------------------------------------------- the call
+def cuda_call(kernel: CudaKernel, shape: tuple, args, out=None):
+    """``kernel`` on the arrays ``args`` (one dtype, float32 or float64), a result of ``shape``; ``out``, where
+    given, the array its result is written into (XLA's ``input_output_aliases``). Under ``jax.vmap`` the batch
+    goes into the call, and inputs that are not mapped get an axis of one (the handler shares them, as
+    ``jax.ffi.ffi_call``'s ``"expand_dims"``). The kernel is chosen when the program is lowered, from its inputs'
+    types with every batch axis in place: the parameters in constant memory where all states share them."""
+    operands = [*args] if out is None else [*args, out]
+    return _call_p.bind(*operands, kernel=kernel, shape=tuple(shape), aliased=out is not None)
+
+
+_call_p = Primitive("jaxskid_cuda_call")
+
+
+def _impl(*args, kernel, shape, aliased):
+    return jax.jit(lambda *a: _call_p.bind(*a, kernel=kernel, shape=shape, aliased=aliased))(*args)
+
+
+def _abstract(*avals, kernel, shape, aliased):
+    return result_aval(avals, shape, avals[0].dtype)
+
+
+def _batch(args, dims, *, kernel, shape, aliased):
+    size = next(a.shape[d] for a, d in zip(args, dims) if d is not None)
+    moved = []
+    for k, (a, d) in enumerate(zip(args, dims)):
+        if d is not None:
+            moved.append(jnp.moveaxis(a, d, 0))
+        elif aliased and k == len(args) - 1:  # the result's memory: one per state
+            moved.append(jnp.broadcast_to(a, (size, *a.shape)))
+        else:
+            moved.append(a[None])
+    return _call_p.bind(*moved, kernel=kernel, shape=(size, *shape), aliased=aliased), 0
+
+
+def _lower(ctx, *args, kernel, shape, aliased):
+    n_in = len(args) - aliased
+    name, attributes = kernel.call(ctx.avals_in[0].dtype, kernel.shares(ctx.avals_in[:n_in]))
+    rule = jax.ffi.ffi_lowering(name, operand_output_aliases={n_in: 0} if aliased else None)
+    return rule(ctx, *args, **attributes)
+
+
+_call_p.def_impl(_impl)
+_call_p.def_abstract_eval(_abstract)
+mlir.register_lowering(_call_p, _lower)
+batching.primitive_batchers[_call_p] = _batch

@@ -19,7 +19,8 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from .._generated import ROLLOUT_PARTS, ROLLOUT_PROGRAMS, ROLLOUT_STRIDE, rollout_layout
+from .._generated import (ROLLOUT_PARAMETERS, ROLLOUT_PARTS, ROLLOUT_PROGRAMS, ROLLOUT_STRIDE, constant_input,
+                          rollout_layout)
 from ._cuda import CudaKernel, architecture
 from ._ffi import ffi_kernel, native_call, platform_kernel
 from ._forward import accelerations
@@ -33,12 +34,16 @@ class RolloutKernel(CudaKernel):
         super().__init__(build, f"rollout ({part})")
         self.vectors, self.n, self.n_params, self.steps, self.part = vectors, n, n_params, steps, part
 
-    def _image(self, dtype: str) -> tuple[bytes, int]:
-        return self.build.cuda_rollout_image(self.vectors, self.n, self.n_params, self.steps, dtype, architecture(),
-                                             self.part)
+    def _parameters(self) -> tuple[int, int]:
+        return ROLLOUT_PARAMETERS[self.part], self.n_params
 
-    def _layout(self) -> tuple:
-        return (*rollout_layout(self.part, self.n, self.n_params, self.steps), False)
+    def _image(self, dtype: str, shared: bool) -> tuple[bytes, int]:
+        return self.build.cuda_rollout_image(self.vectors, self.n, self.n_params, self.steps, dtype, architecture(),
+                                             self.part, shared)
+
+    def _layout(self, shared: bool) -> tuple:
+        return (*rollout_layout(self.part, self.n, self.n_params, self.steps), False,
+                constant_input(*self._parameters(), shared))
 
 
 def rollout_kernels(builds, n: int, n_params: int, steps: int) -> tuple[RolloutKernel, ...] | None:

@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 
 from .._generated import NativeBuild
-from ._cuda import CudaKernel
+from ._cuda import CudaKernel, cuda_call
 
 log = logging.getLogger("jaxskid")
 
@@ -104,8 +104,10 @@ def ffi_kernel(target: str | CudaKernel, shape, vmap_method: str = "broadcast_al
     def native(*args, out=None):
         dtype = jnp.result_type(*args)
         args = [jnp.asarray(x, dtype) for x in args]
+        if not isinstance(target, str):
+            return cuda_call(target, shape, args, None if out is None else out.astype(dtype))
         result = jax.ShapeDtypeStruct(tuple(shape), dtype)
-        name, attributes = (target, {}) if isinstance(target, str) else target.call(dtype)
+        name, attributes = target, {}
         if out is None:
             return jax.ffi.ffi_call(name, result, vmap_method=vmap_method)(*args, **attributes)
         aliased = jax.ffi.ffi_call(name, result, vmap_method=vmap_method, input_output_aliases={len(args): 0})

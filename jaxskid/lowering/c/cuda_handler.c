@@ -13,6 +13,7 @@
 
 typedef int CUresult;
 typedef void *CUmodule, *CUfunction, *CUcontext, *CUstream;
+typedef unsigned long long CUdeviceptr;
 
 static struct {
     CUresult (*module_load)(CUmodule *, const void *);
@@ -24,6 +25,8 @@ static struct {
     CUresult (*pop)(CUcontext *);
     CUresult (*error_string)(CUresult, const char **);
     CUresult (*memset)(void *, unsigned char, size_t, CUstream);
+    CUresult (*get_global)(CUdeviceptr *, size_t *, CUmodule, const char *);
+    CUresult (*copy)(CUdeviceptr, CUdeviceptr, size_t, CUstream);
 } cu;
 
 @JOB@
@@ -32,10 +35,12 @@ static struct {
 
 typedef struct {
     char *image;
-    int n_in, threads, zero_first;
+    int n_in, threads, zero_first, constant;
     int64_t size[MAX_IN], core[MAX_IN], n_out, out_rank;
     CUcontext context[MAX_CONTEXTS];
     CUfunction function[MAX_CONTEXTS];
+    CUdeviceptr parameters[MAX_CONTEXTS];  /* the module's jaxskid_p in each context (constant >= 0) */
+    size_t parameter_bytes[MAX_CONTEXTS];
 } entry;
 
 static entry table[MAX_KERNELS];
@@ -59,7 +64,10 @@ static int open_driver(void)
             *(void **)&cu.pop = dlsym(h, "cuCtxPopCurrent_v2");
             *(void **)&cu.error_string = dlsym(h, "cuGetErrorString");
             *(void **)&cu.memset = dlsym(h, "cuMemsetD8Async");
-            if (cu.module_load && cu.get_function && cu.launch && cu.stream_context && cu.push && cu.pop && cu.memset)
+            *(void **)&cu.get_global = dlsym(h, "cuModuleGetGlobal_v2");
+            *(void **)&cu.copy = dlsym(h, "cuMemcpyDtoDAsync_v2");
+            if (cu.module_load && cu.get_function && cu.launch && cu.stream_context && cu.push && cu.pop && cu.memset
+                && cu.get_global && cu.copy)
                 state = 1;
         }
     }
@@ -68,13 +76,14 @@ static int open_driver(void)
 }
 
 /* Register a kernel: its image (`length` bytes, kept), the entries per state of each input and the trailing
-   axes holding them, the result's entries per state and its trailing axes, its threads per block, and whether
-   the result is zeroed before it runs (it does not write the entries that are always zero). Returns its
-   number, or -1. */
+   axes holding them, the result's entries per state and its trailing axes, its threads per block, whether
+   the result is zeroed before it runs (it does not write the entries that are always zero), and the input
+   copied into the module's constant memory (`jaxskid_p`) before each launch, shared by every state (-1: none).
+   Returns its number, or -1. */
 int64_t jaxskid_cuda_register(const char *image, int64_t length, int n_in, const int64_t *size, const int64_t *core,
-                              int64_t n_out, int64_t out_rank, int threads, int zero_first)
+                              int64_t n_out, int64_t out_rank, int threads, int zero_first, int constant)
 {
-    if (n_in > MAX_IN || n_in < 1) return -1;
+    if (n_in > MAX_IN || n_in < 1 || constant >= n_in) return -1;
     char *copy = malloc((size_t)length + 1);
     if (copy == NULL) return -1;
     memcpy(copy, image, (size_t)length);
@@ -84,7 +93,7 @@ int64_t jaxskid_cuda_register(const char *image, int64_t length, int n_in, const
     if (id >= 0) {
         entry *e = &table[id];
         e->image = copy, e->n_in = n_in, e->n_out = n_out, e->out_rank = out_rank, e->threads = threads;
-        e->zero_first = zero_first;
+        e->zero_first = zero_first, e->constant = constant;
         for (int i = 0; i < n_in; i++) e->size[i] = size[i], e->core[i] = core[i];
     }
     pthread_mutex_unlock(&lock);
@@ -102,21 +111,25 @@ static XLA_FFI_Error *fail(const XLA_FFI_Api *api, const char *what, CUresult st
     return api->XLA_FFI_Error_Create(&args);
 }
 
-/* The kernel's function in `context`, its module loaded there on the first call. */
-static CUresult function_in(entry *e, CUcontext context, CUfunction *fn)
+/* The kernel's function in `context`, its module loaded there on the first call, and where its constant
+   parameters are (`parameters`, `bytes`; untouched where it has none). */
+static CUresult function_in(entry *e, CUcontext context, CUfunction *fn, CUdeviceptr *parameters, size_t *bytes)
 {
     CUresult status = 0;
     pthread_mutex_lock(&lock);
     int slot = 0;
     while (slot < MAX_CONTEXTS && e->context[slot] != NULL && e->context[slot] != context) slot++;
     if (slot == MAX_CONTEXTS) status = 1;  /* CUDA_ERROR_INVALID_VALUE */
-    else if (e->context[slot] == context) *fn = e->function[slot];
-    else {
+    else if (e->context[slot] != context) {
         CUmodule module;
+        CUfunction loaded;
         status = cu.module_load(&module, e->image);
-        if (status == 0) status = cu.get_function(fn, module, "jaxskid_kernel");
-        if (status == 0) e->context[slot] = context, e->function[slot] = *fn;
+        if (status == 0) status = cu.get_function(&loaded, module, "jaxskid_kernel");
+        if (status == 0 && e->constant >= 0)
+            status = cu.get_global(&e->parameters[slot], &e->parameter_bytes[slot], module, "jaxskid_p");
+        if (status == 0) e->context[slot] = context, e->function[slot] = loaded;
     }
+    if (status == 0) *fn = e->function[slot], *parameters = e->parameters[slot], *bytes = e->parameter_bytes[slot];
     pthread_mutex_unlock(&lock);
     return status;
 }
@@ -182,7 +195,21 @@ XLA_FFI_Error *jaxskid_cuda_quantity(XLA_FFI_CallFrame *call)
     if (status != 0) return fail(api, "the stream's context", status);
     if ((status = cu.push(context)) != 0) return fail(api, "making the stream's context current", status);
     CUfunction fn = NULL;
-    status = function_in(e, context, &fn);
+    CUdeviceptr parameters = 0;
+    size_t parameter_bytes = 0;
+    status = function_in(e, context, &fn, &parameters, &parameter_bytes);
+    if (status == 0 && e->constant >= 0) {
+        /* The parameters, shared by every state, into constant memory on the same stream: the launch that reads
+           them follows, and a later call's copy waits for it (XLA's calls of a program share one stream). */
+        const XLA_FFI_Buffer *b = (const XLA_FFI_Buffer *)call->args.args[e->constant];
+        const size_t bytes = (size_t)e->size[e->constant] * (b->dtype == XLA_FFI_DataType_F64 ? 8 : 4);
+        for (int64_t d = 0; d < j.nb; d++)
+            if (j.stride[e->constant][d] != 0) {
+                cu.pop(&previous);
+                return fail(api, "the parameters differ between states, and this kernel reads one set", 0);
+            }
+        status = bytes <= parameter_bytes ? cu.copy(parameters, (CUdeviceptr)b->data, bytes, stream) : 1;
+    }
     if (status == 0 && e->zero_first) {
         const size_t bytes = (size_t)j.batch * (size_t)e->n_out
                              * (((XLA_FFI_Buffer *)call->rets.rets[0])->dtype == XLA_FFI_DataType_F64 ? 8 : 4);

@@ -13,6 +13,7 @@
 typedef JAXSKID_IO io_t;
 typedef double D;
 #define DLIFT(e) ((D)(e))
+@CONSTANTS@
 @TRIG@
 JAXSKID_FN double Dsign(double x) { return (double)((x > 0.0) - (x < 0.0)); }
 
