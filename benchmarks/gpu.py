@@ -100,10 +100,11 @@ SLOW = {("g1", "coriolis_matrix"), ("g1_hands", "coriolis_matrix"), ("g1_hands",
 """The cases whose JAX form XLA compiles for minutes on a GPU: run after every section."""
 AGREEMENT = {"z1_all": QUANTITIES, "g1": ("mass_matrix", "forward_dynamics", "regressor", "mass_matrix_dot")}
 """The quantities whose kernels ``agreement`` compares with the JAX form computed on the CPU."""
-VARIANTS = {"program order": {"JAXSKID_CUDA_ORDER": "program"},
+VARIANTS = {"library trig": {"JAXSKID_CUDA_TRIG": "library"},
+            "program order": {"JAXSKID_CUDA_ORDER": "program"},
             "parameters from their input": {"JAXSKID_CUDA_CONSTANT": "0"},
             "program order; parameters from their input": {"JAXSKID_CUDA_ORDER": "program", "JAXSKID_CUDA_CONSTANT": "0"},
-            "fused trig": {"JAXSKID_CUDA_TRIG": "fused"}, "not split": {"JAXSKID_CUDA_LONG": "1000000"}}
+            "not split": {"JAXSKID_CUDA_LONG": "1000000"}}
 """The kernel builds ``variants`` measures against the default (:mod:`jaxskid.lowering._cuda`'s settings)."""
 VARIANT_QUANTITIES = ("mass_matrix", "coriolis_matrix", "inverse_dynamics")
 """The G1's quantities ``variants`` builds each way."""
@@ -259,12 +260,32 @@ def states(count: int, batch: int, n: int, seed: int = 0) -> list[jax.Array]:
     return [jnp.asarray(rng.uniform(-1, 1, size=(batch, n))) for _ in range(count)]
 
 
+IN_FLIGHT = 10
+"""Calls issued before waiting, for the time per call with the calls in flight (:func:`in_flight`)."""
+
+
+def in_flight(fn, args, calls: int = IN_FLIGHT, repeats: int = 3) -> float:
+    """Seconds per call of ``fn(*args)`` with ``calls`` calls issued before waiting for them all (the median of
+    ``repeats``): the device's time per call where the host's dispatch and its wait for the result overlap it,
+    as in a loop of calls. A single call waited for (:func:`timed`) also counts the wait itself."""
+    jax.block_until_ready(fn(*args))
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready([fn(*args) for _ in range(calls)])
+        times.append((time.perf_counter() - start) / calls)
+    return float(np.median(times))
+
+
 def per_state(fn, args, batch: int) -> dict:
-    """``fn(*args)`` on float64 and on float32 states: first calls (seconds) and median ns per state."""
+    """``fn(*args)`` on float64 and on float32 states: first calls (seconds), median ns per state of one call
+    waited for, and per state with :data:`IN_FLIGHT` calls in flight."""
     first, median = timed(fn, *args)
-    first32, median32 = timed(fn, *[a.astype(jnp.float32) for a in args])
+    args32 = [a.astype(jnp.float32) for a in args]
+    first32, median32 = timed(fn, *args32)
     return {"first_s": first, "per_state_ns": 1e9 * median / batch,
-            "first_s_f32": first32, "per_state_ns_f32": 1e9 * median32 / batch}
+            "first_s_f32": first32, "per_state_ns_f32": 1e9 * median32 / batch,
+            "flight_ns": 1e9 * in_flight(fn, args) / batch, "flight_ns_f32": 1e9 * in_flight(fn, args32) / batch}
 
 
 # ---------------------------------------------------------------------------------------------- sections
@@ -334,8 +355,9 @@ def variants(log: Log, urdf_dir: Path, batch: int) -> None:
                 ids["section"] = "variants"
                 args = states(STATES[quantity], batch, dyn.n_dof)
                 case(log, log.fits("variants"),
-                     lambda fn=getattr(dyn, quantity), a=args: dict(zip(("first_s", "per_state_ns"),
-                                                                         _first_and_ns(fn, a, batch))), **ids)
+                     lambda fn=getattr(dyn, quantity), a=args: {
+                         **dict(zip(("first_s", "per_state_ns"), _first_and_ns(fn, a, batch))),
+                         "flight_ns": 1e9 * in_flight(fn, a) / batch}, **ids)
         finally:
             for k, v in saved.items():
                 if v is None:
@@ -550,14 +572,16 @@ TABLES = {  # section: (column, key, format); the columns with a format but _run
     "quantities": [("robot", "robot", None), ("DOF", "n_dof", None), ("quantity", "quantity", None),
                    ("form", "form", None), ("runs", "runs", _runs), ("first call", "first_s", S),
                    ("per state", "per_state_ns", NS), ("float32 first call", "first_s_f32", S),
-                   ("float32 per state", "per_state_ns_f32", NS)],
+                   ("float32 per state", "per_state_ns_f32", NS), ("per state, calls in flight", "flight_ns", NS),
+                   ("the same, float32", "flight_ns_f32", NS)],
     "adam": [("quantity", "quantity", None), ("library", "library", None), ("form", "form", None),
              ("runs", "runs", _runs), ("first call", "first_s", S), ("per state", "per_state_ns", NS),
              ("float32 first call", "first_s_f32", S), ("float32 per state", "per_state_ns_f32", NS),
+             ("per state, calls in flight", "flight_ns", NS), ("the same, float32", "flight_ns_f32", NS),
              ("max abs diff from adam's float64", "max_abs_diff", "{:.1e}".format),
              ("the same, float32", "max_abs_diff_f32", "{:.1e}".format)],
     "variants": [("quantity", "quantity", None), ("kernel build", "variant", None), ("first call", "first_s", S),
-                 ("per state", "per_state_ns", NS)],
+                 ("per state", "per_state_ns", NS), ("per state, calls in flight", "flight_ns", NS)],
     "rollout": [("batch", "batch", None), ("form", "form", None), ("rollout", "rollout", None),
                 ("dtype", "dtype", None), ("runs", "runs", _runs), ("loss", "loss_ms", MS),
                 ("gradient", "grad_ms", MS), ("ratio", "ratio", "{:.1f}x".format),

@@ -162,6 +162,20 @@ CONSTANT_MAX = 8192
 """The most parameters a CUDA kernel reads from constant memory (64 KiB of doubles)."""
 
 
+BY_ENTRY = 64
+"""A CUDA quantity kernel of at least this many result entries per state writes them by entry (all states'
+entry 0, then entry 1, ...), where neighbouring threads write neighbouring addresses; XLA then transposes the
+result into rows. Written by state, a warp's store touches 32 rows, far apart (:func:`by_entry`)."""
+
+
+def by_entry(n_out: int) -> bool:
+    """Whether a CUDA quantity kernel of ``n_out`` result entries per state writes its result by entry
+    (:data:`BY_ENTRY`), unless ``JAXSKID_CUDA_LAYOUT`` is ``rows``."""
+    if os.environ.get("JAXSKID_CUDA_LAYOUT", "").strip() == "rows":
+        return False
+    return n_out >= BY_ENTRY
+
+
 def constant_input(index: int, size: int, shared: bool) -> int:
     """``index``, the input of a CUDA kernel that holds its ``size`` parameters, where the kernel reads them from
     constant memory (the handler copies them there before each call): where every state of the call shares

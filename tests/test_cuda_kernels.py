@@ -10,6 +10,7 @@ import pytest
 
 import jaxskid
 from helpers import ERD, ROBOTS_DIR, load
+from jaxskid._generated import by_entry
 from jaxskid.lowering import _cuda
 
 QUANTITIES = ["mass_matrix", "coriolis_matrix", "regressor", "forward_dynamics", "mass_matrix_dot", "inverse_dynamics",
@@ -51,7 +52,8 @@ def _check(dyn, names, tmp_path, rng, io=("float64", "float32"), spread=1.0, sha
         for constant in shared:
             host = _cuda.host_library(_cuda.kernel_source(sources, name, shared=constant), tmp_path)
             out = np.full((2, 3, *shape), np.nan)
-            _cuda.run_on_host(host, [*states, p], cores, out, out_rank, len(sizes) - 1 if constant else -1)
+            _cuda.run_on_host(host, [*states, p], cores, out, out_rank, len(sizes) - 1 if constant else -1,
+                              by_entry(n_out))
             np.testing.assert_allclose(out, want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()),
                                        err_msg=f"{name}, parameters in constant memory: {constant}")
 
@@ -117,14 +119,15 @@ def test_long_kernels_in_pieces(monkeypatch, tmp_path):
     _check(dyn, names, tmp_path, np.random.default_rng(5), io=("float64",))
 
 
-def test_kernels_with_their_own_sine_and_cosine(monkeypatch, tmp_path):
-    """JAXSKID_CUDA_TRIG=fused: sine and cosine by multiply-adds (c/cuda_trig.h, as the rollout kernels compute
-    them), at angles over many quadrants."""
-    monkeypatch.setenv("JAXSKID_CUDA_TRIG", "fused")
+def test_sine_and_cosine_at_many_quadrants(monkeypatch, tmp_path):
+    """Sine and cosine by multiply-adds (c/cuda_trig.h, the default), and CUDA's (JAXSKID_CUDA_TRIG=library), at
+    angles over many quadrants."""
     names = ["mass_matrix", "coriolis_matrix"]
     dyn = jaxskid.lower(load("panda7"), QUANTITIES)
-    assert "jaxskid_trig" in _cuda.kernel_source(_kernels(dyn)["mass_matrix"][0], "mass_matrix")
-    _check(dyn, names, tmp_path, np.random.default_rng(6), io=("float64",), spread=30.0)
+    for trig, own in (("fused", True), ("library", False)):
+        monkeypatch.setenv("JAXSKID_CUDA_TRIG", trig)
+        assert ("jaxskid_trig" in _cuda.kernel_source(_kernels(dyn)["mass_matrix"][0], "mass_matrix")) == own
+        _check(dyn, names, tmp_path, np.random.default_rng(6), io=("float64",), spread=30.0, shared=(True,))
 
 
 @pytest.mark.slow
@@ -140,6 +143,7 @@ def test_programs_for_a_gpu_call_the_kernels(monkeypatch, tmp_path):
     with the kernel's number, the batch inside one call and the parameters shared by all states (one row);
     so does its gradient, through the mass matrix's pullback kernel; and no JAX form of M is left in it."""
     import jaxskid._api
+    import jaxskid._generated
     import jaxskid.runtime._dynamics
 
     for module in (jaxskid._api, jaxskid.runtime._dynamics):
@@ -166,6 +170,14 @@ def test_programs_for_a_gpu_call_the_kernels(monkeypatch, tmp_path):
     assert len(mapped) == 1 and f"tensor<16x{p.shape[1]}xf64>" in mapped[0]
     assert set(kernel._ids) == {("float64", True), ("float64", False)}
     assert kernel._ids[("float64", False)] != kernel._ids[("float64", True)]
+    # a result of many entries is written by entry (here forced for M's four): the call's result holds the
+    # entries first, and XLA transposes it into a row per state
+    monkeypatch.setattr(jaxskid._generated, "BY_ENTRY", 4)
+    dyn = jaxskid.lower(jaxskid.load(ROBOTS_DIR / "arm_2r.yaml"), ["mass_matrix"], cache_dir=tmp_path)
+    text = jax.export.export(jax.jit(lambda q: dyn.mass_matrix(q)), platforms=["cuda"], disabled_checks=skip)(q)
+    text = text.mlir_module()
+    calls = [line for line in text.splitlines() if "custom_call" in line]
+    assert len(calls) == 1 and "-> tensor<4x16xf64>" in calls[0] and "stablehlo.transpose" in text
 
 
 def _cuda_target() -> str:

@@ -42,7 +42,7 @@ def test_kernels_agree_with_the_jax_rollout_and_its_pullback(tmp_path):
         kernel = kernels[part]
         lib = _cuda.host_library(_cuda_rollout.rollout_source(kernel.vectors, "panda", n, n_params, STEPS,
                                                               part=part, shared=shared), tmp_path)
-        _, cores, _, out_rank, _, constant = kernel._layout(shared)
+        _, cores, _, out_rank, _, constant, _ = kernel._layout(shared)
         assert (constant >= 0) == shared
         out = np.full(shape, np.nan)
         _cuda.run_on_host(lib, inputs, cores, out, out_rank, constant)

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._generated import NativeSource, VectorKernel, constant_input
+from .._generated import NativeSource, VectorKernel, by_entry, constant_input
 from ._ffi import Piece, _chunked
 from ._native import CFLAGS, BuildError, _compile, _compiler, _install, _key, _sources
 from ._templates import fill, template
@@ -59,12 +59,12 @@ than as one function or in pieces of 2,048; its mass matrix (2,150) ran faster a
 CHUNK = 512
 """Statements per piece of a long kernel (``JAXSKID_CUDA_CHUNK`` sets another)."""
 
-TRIG = "library"
-"""How a quantity kernel computes sine and cosine: ``"library"``, CUDA's ``sin`` and ``cos``, or ``"fused"``,
-multiply-adds without a branch (``c/cuda_trig.h``); ``JAXSKID_CUDA_TRIG`` sets the other. The rollout kernels
-always use ``"fused"``: on an H200 the z1's rollout ran a third faster with it (the library's functions branch
-to a slow reduction for large angles, which kept a thread's calls from interleaving); for the quantities it is
-not yet measured (``benchmarks/gpu.py``'s ``variants`` compares the two)."""
+TRIG = "fused"
+"""How a kernel computes sine and cosine: ``"fused"``, multiply-adds without a branch (``c/cuda_trig.h``), or
+``"library"``, CUDA's ``sin`` and ``cos`` (``JAXSKID_CUDA_TRIG`` sets the other for the quantity kernels; the
+rollout kernels always use ``"fused"``). The library's functions branch to a slow reduction for large angles,
+which keeps a thread's calls from interleaving; on an H200 the G1's tau ran 1.7x and its Coriolis matrix 1.4x
+faster with the multiply-adds, its mass matrix about as fast (``benchmarks/gpu.py``'s ``variants``)."""
 
 _IO = {"float32": "float", "float64": "double"}
 
@@ -153,7 +153,8 @@ def constants(n_params: int | None) -> str:
 def kernel_source(native: NativeSource, name: str, io: str = "float64", shared: bool = True) -> str | None:
     """The CUDA source of the quantity ``name`` of ``native`` for inputs and result of dtype ``io``
     (``"float32"`` or ``"float64"``), exporting ``jaxskid_kernel(jaxskid_job)``; None where the quantity has
-    no kernel (no vector form). ``shared``: every state of a call has the same parameters, which the kernel
+    no kernel (no vector form); a result of many entries by entry (:func:`jaxskid._generated.by_entry`), which
+    the caller transposes. ``shared``: every state of a call has the same parameters, which the kernel
     reads from constant memory (the handler copies them there before it runs), where they fit
     (:func:`jaxskid._generated.constant_input`); otherwise from the parameters' input."""
     kernel = native.vectors.get(name)
@@ -164,14 +165,16 @@ def kernel_source(native: NativeSource, name: str, io: str = "float64", shared: 
     constant = sizes[-1] if constant_input(len(sizes) - 1, sizes[-1], shared) >= 0 else None
     kernel, restrict = ordered(kernel if constant is None else constant_parameters(kernel))
     long, chunk = split_sizes()
+    columns = by_entry(n_out)
     functions = _chunked("body", kernel, "D", set(kernel.zeros), io="io_t", long=long, chunk_size=chunk, huge=None,
-                         restrict=restrict)
+                         restrict=restrict, stride=columns)
     call = ", ".join(f"(const io_t *)j->in[{i}] + off[{i}]" for i in range(len(sizes)))
+    out = "(io_t *)j->out + s, j->batch" if columns else f"(io_t *)j->out + s * {n_out}LL"
     return "".join([f"#define JAXSKID_IO {_IO[io]}\n",
                     fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source(), STEM=native.stem,
                          NAME=name, CONSTANTS=constants(constant),
                          FUNCTIONS="".join(f.text() if isinstance(f, Piece) else f for f in functions),
-                         N_IN=len(sizes), CALL=call, N_OUT=n_out, THREADS=threads())])
+                         N_IN=len(sizes), CALL=call, OUT=out, THREADS=threads())])
 
 
 # ---------------------------------------------------------------------------------------------- NVRTC
@@ -319,19 +322,23 @@ class HostJob(ctypes.Structure):
                 ("out", ctypes.c_void_p)]
 
 
-def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int, constant: int = -1) -> None:
+def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int, constant: int = -1, columns: bool = False) -> None:
     """Run a :func:`host_library` kernel on contiguous NumPy arrays as the handler runs it on a GPU: ``out``'s
     leading axes (all but its last ``out_rank``) are the batch, input i's last ``cores[i]`` axes hold one
     state's entries and its leading axes broadcast against the batch (right-aligned; an axis of 1, or a missing
     one, is shared). ``constant``: the input copied into the kernel's :data:`CONSTANT` first, as the handler
-    copies it into constant memory (-1: none). Zeroes ``out``, then writes it."""
+    copies it into constant memory (-1: none). ``columns``: the kernel writes by entry (``out``'s shape as for
+    rows: it is written through a buffer of the entries by state, then transposed). Zeroes ``out``, then
+    writes it."""
     if constant >= 0:
         values = np.ascontiguousarray(inputs[constant]).ravel()
         ctypes.memmove(ctypes.addressof(ctypes.c_char.in_dll(lib, CONSTANT)), values.ctypes.data, values.nbytes)
     job, nb = HostJob(), out.ndim - out_rank
-    out[...] = 0
+    batch = out.shape[:nb]
+    buffer = np.zeros((int(np.prod(out.shape[nb:], dtype=np.int64)), *batch), out.dtype) if columns else out
+    buffer[...] = 0
     for d in range(nb):
-        job.dims[d] = out.shape[d]
+        job.dims[d] = batch[d]
     for i, (x, core) in enumerate(zip(inputs, cores)):
         job.inputs[i] = x.ctypes.data
         lead, step = x.shape[:x.ndim - core], int(np.prod(x.shape[x.ndim - core:], dtype=np.int64))
@@ -340,5 +347,7 @@ def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int, constant: i
             extent = lead[k] if k >= 0 else 1
             job.stride[i][d] = 0 if extent == 1 else step
             step *= extent
-    job.nb, job.batch, job.out = nb, int(np.prod(out.shape[:nb], dtype=np.int64)), out.ctypes.data
+    job.nb, job.batch, job.out = nb, int(np.prod(batch, dtype=np.int64)), buffer.ctypes.data
     lib.jaxskid_host(ctypes.byref(job))
+    if columns:
+        out[...] = np.moveaxis(buffer, 0, -1).reshape(out.shape)

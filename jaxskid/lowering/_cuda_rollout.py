@@ -68,5 +68,5 @@ def rollout_source(vectors: Mapping[str, VectorKernel | None], stem: str, n: int
             f"#define JAXSKID_ROLLOUT_PART {ROLLOUT_PARTS.index(part)}\n")
     return head + fill(template("cuda_kernel.cu"), JOB=template("cuda_job.h"), TRIG=trig_source("fused"), STEM=stem,
                        NAME=f"rollout ({part})", CONSTANTS=constants(n_params if constant else None),
-                       FUNCTIONS=functions, N_IN=len(sizes), CALL=call, N_OUT=n_out,
+                       FUNCTIONS=functions, N_IN=len(sizes), CALL=call, OUT=f"(io_t *)j->out + s * {n_out}LL",
                        THREADS=threads())

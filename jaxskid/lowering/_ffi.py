@@ -97,12 +97,12 @@ class Piece(NamedTuple):
         return f"static __attribute__((noinline)) void {self.name}({self.params})\n{self.body}"
 
 
-def _line(s: Statement, vec: str) -> str:
-    """One statement of a vector kernel as C."""
+def _line(s: Statement, vec: str, stride: bool = False) -> str:
+    """One statement of a vector kernel as C; ``stride``: output ``k`` is ``out[k * ostride]``."""
     if s.kind == "unused":
         return f"    (void){s.name};"
     if s.kind == "output":
-        return f"    out[{s.name}] = {fill(s.value, V=vec)};"
+        return f"    out[{s.name}{'LL * ostride' if stride else ''}] = {fill(s.value, V=vec)};"
     return f"    const {vec} {s.name} = {fill(s.value, V=vec)};"
 
 
@@ -122,7 +122,7 @@ short anyway."""
 
 def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozenset(), io: str | None = None,
              long: int | None = None, chunk_size: int | None = None, huge: int | None = HUGE,
-             restrict: bool = False) -> list[str | Piece]:
+             restrict: bool = False, stride: bool = False) -> list[str | Piece]:
     """The function ``name`` of ``kernel``, split into functions of ``chunk_size`` statements (:data:`CHUNK`)
     that pass the values later pieces read through a workspace, where it has more than ``long``; the outputs
     ``zeros`` are not assigned. GCC's register allocator takes time quadratic in a function's length (the G1's
@@ -132,14 +132,16 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
     (None: never). Left out, ``long`` and ``chunk_size`` are :data:`LONG` and :data:`CHUNK` as they are when
     called. ``restrict``: the pointers are ``__restrict__`` (none aliases another), and a piece reads each value
     of an earlier piece just before its first statement that needs it, not at its top (a GPU thread's registers:
-    :func:`jaxskid.lowering._cuda.thread_order`)."""
+    :func:`jaxskid.lowering._cuda.thread_order`). ``stride``: the function takes ``ostride`` after ``out`` and
+    writes output ``k`` to ``out[k * ostride]`` (a GPU kernel's results by entry: :func:`jaxskid.lowering._cuda.kernel_source`)."""
     long, chunk_size = LONG if long is None else long, CHUNK if chunk_size is None else chunk_size
     ptr, star = io or vec, " *__restrict__ " if restrict else " *"
-    params = ", ".join([*(f"const {ptr}{star}{a}" for a in kernel.args), f"{ptr}{star}out"])
+    params = ", ".join([*(f"const {ptr}{star}{a}" for a in kernel.args), f"{ptr}{star}out",
+                        *(["const long long ostride"] if stride else [])])
     statements = kernel.statements
     kept = [s.kind != "output" or int(s.name) not in zeros for s in statements]
     if len(statements) <= long:
-        body = "".join(_line(s, vec) + "\n" for s, keep in zip(statements, kept) if keep)
+        body = "".join(_line(s, vec, stride) + "\n" for s, keep in zip(statements, kept) if keep)
         return [f"static void {name}({params})\n{{\n{body}}}\n"]
     defined: dict[str, int] = {}  # variable -> the chunk defining it
     inputs: dict[str, str] = {}  # variable -> its definition, for the reads of an input entry (read again)
@@ -153,7 +155,7 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
         for v in s.reads:
             if defined[v] < k // chunk_size and v not in slots and v not in inputs:
                 slots[v] = len(slots)
-    args = ", ".join([*kernel.args, "out"])
+    args = ", ".join([*kernel.args, "out", *(["ostride"] if stride else [])])
     pieces, calls = [], []
     for c in range(0, len(statements), chunk_size):
         chunk = range(c, min(c + chunk_size, len(statements)))
@@ -168,7 +170,7 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
             if restrict:
                 text += [reads.pop(v) for v in s.reads if v in reads]
             if kept[k]:
-                text.append(_line(s, vec))
+                text.append(_line(s, vec, stride))
             if s.kind == "define" and s.name in slots:
                 text.append(f"    w[{slots[s.name]}] = {s.name};")
         piece = f"{name}_{c // chunk_size}"

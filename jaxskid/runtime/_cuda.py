@@ -22,7 +22,7 @@ import numpy as np
 from jax.extend.core import Primitive
 from jax.interpreters import batching, mlir
 
-from .._generated import NativeBuild, constant_input
+from .._generated import NativeBuild, by_entry, constant_input
 from ._whole import result_aval
 
 TARGET = "jaxskid_cuda_quantity"
@@ -52,7 +52,7 @@ def _handler(build: NativeBuild) -> ctypes.CDLL:
             lib.jaxskid_cuda_register.argtypes = [ctypes.c_char_p, ctypes.c_int64, ctypes.c_int,
                                                   ctypes.POINTER(ctypes.c_int64), ctypes.POINTER(ctypes.c_int64),
                                                   ctypes.c_int64, ctypes.c_int64, ctypes.c_int, ctypes.c_int,
-                                                  ctypes.c_int]
+                                                  ctypes.c_int, ctypes.c_int]
             jax.ffi.register_ffi_target(TARGET, jax.ffi.pycapsule(lib.jaxskid_cuda_quantity), platform="CUDA")
             _HANDLER.append(lib)
         return _HANDLER[0]
@@ -85,6 +85,10 @@ class CudaKernel:
             self._ids[key] = register(self.build, image, threads, *self._layout(key[1]), str(self))
         return TARGET, {"kernel": np.int64(self._ids[key])}
 
+    def out_rank(self) -> int:
+        """The number of the result's trailing axes that hold one state's entries."""
+        return next(k for k in self.build.sources.kernels if k[0] == self.name)[4]
+
     def _parameters(self) -> tuple[int, int]:
         """``(input, size)``: which input holds the parameters, and their number."""
         sizes = next(k for k in self.build.sources.kernels if k[0] == self.name)[1]
@@ -100,20 +104,25 @@ class CudaKernel:
         return self.build.cuda_image(self.name, dtype, architecture(), shared)
 
     def _layout(self, shared: bool) -> tuple:
-        """``(sizes, cores, n_out, out_rank, zero_first, constant)`` as :func:`register` takes them."""
+        """``(sizes, cores, n_out, out_rank, zero_first, constant, columns)`` as :func:`register` takes them."""
         _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
         return (sizes, cores, n_out, out_rank, bool(self.build.sources.vectors[self.name].zeros),
-                constant_input(*self._parameters(), shared))
+                constant_input(*self._parameters(), shared), self.columns())
+
+    def columns(self) -> bool:
+        """Whether the kernel writes its result by entry (:func:`jaxskid._generated.by_entry`)."""
+        return by_entry(next(k for k in self.build.sources.kernels if k[0] == self.name)[3])
 
 
 def register(build: NativeBuild, image: bytes, threads: int, sizes, cores, n_out: int, out_rank: int,
-             zero_first: bool, constant: int, label: str) -> int:
+             zero_first: bool, constant: int, columns: bool, label: str) -> int:
     """A compiled kernel registered with the handler (``c/cuda_handler.c``): its number, the attribute ``kernel``
-    of its calls. ``constant``: the input the handler copies into the kernel's constant memory (-1: none)."""
+    of its calls. ``constant``: the input the handler copies into the kernel's constant memory (-1: none);
+    ``columns``: it writes its result by entry."""
     lib = _handler(build)
     sizes_c, cores_c = (ctypes.c_int64 * len(sizes))(*sizes), (ctypes.c_int64 * len(cores))(*cores)
     kid = lib.jaxskid_cuda_register(image, len(image), len(sizes), sizes_c, cores_c, n_out, out_rank, threads,
-                                    int(zero_first), int(constant))
+                                    int(zero_first), int(constant), int(columns))
     if kid < 0:
         raise RuntimeError(f"jaxskid: the CUDA kernel {label} could not be registered")
     return kid
@@ -175,6 +184,18 @@ def _batch(args, dims, *, kernel, shape, aliased):
 def _lower(ctx, *args, kernel, shape, aliased):
     n_in = len(args) - aliased
     name, attributes = kernel.call(ctx.avals_in[0].dtype, kernel.shares(ctx.avals_in[:n_in]))
+    if kernel.columns():  # entries by state, transposed by XLA into a row per state; no memory to write into
+        result = ctx.avals_out[0]
+        nb = len(result.shape) - kernel.out_rank()
+        entries = jax.ShapeDtypeStruct((int(np.prod(result.shape[nb:], dtype=np.int64)), *result.shape[:nb]),
+                                       result.dtype)
+
+        def by_entry(*inputs):
+            flat = jax.ffi.ffi_call(name, entries)(*inputs, **attributes)
+            return jnp.moveaxis(flat, 0, -1).reshape(result.shape)
+
+        return mlir.lower_fun(by_entry, multiple_results=False)(ctx.replace(avals_in=ctx.avals_in[:n_in]),
+                                                                *args[:n_in])
     rule = jax.ffi.ffi_lowering(name, operand_output_aliases={n_in: 0} if aliased else None)
     return rule(ctx, *args, **attributes)
 

@@ -43,7 +43,10 @@ class RolloutKernel(CudaKernel):
 
     def _layout(self, shared: bool) -> tuple:
         return (*rollout_layout(self.part, self.n, self.n_params, self.steps), False,
-                constant_input(*self._parameters(), shared))
+                constant_input(*self._parameters(), shared), False)
+
+    def columns(self) -> bool:
+        return False
 
 
 def rollout_kernels(builds, n: int, n_params: int, steps: int) -> tuple[RolloutKernel, ...] | None:

@@ -35,7 +35,7 @@ static struct {
 
 typedef struct {
     char *image;
-    int n_in, threads, zero_first, constant;
+    int n_in, threads, zero_first, constant, columns;
     int64_t size[MAX_IN], core[MAX_IN], n_out, out_rank;
     CUcontext context[MAX_CONTEXTS];
     CUfunction function[MAX_CONTEXTS];
@@ -78,10 +78,12 @@ static int open_driver(void)
 /* Register a kernel: its image (`length` bytes, kept), the entries per state of each input and the trailing
    axes holding them, the result's entries per state and its trailing axes, its threads per block, whether
    the result is zeroed before it runs (it does not write the entries that are always zero), and the input
-   copied into the module's constant memory (`jaxskid_p`) before each launch, shared by every state (-1: none).
-   Returns its number, or -1. */
+   copied into the module's constant memory (`jaxskid_p`) before each launch, shared by every state (-1: none),
+   and whether it writes its result by entry (columns: the result's first axis is the entries, the batch
+   axes follow). Returns its number, or -1. */
 int64_t jaxskid_cuda_register(const char *image, int64_t length, int n_in, const int64_t *size, const int64_t *core,
-                              int64_t n_out, int64_t out_rank, int threads, int zero_first, int constant)
+                              int64_t n_out, int64_t out_rank, int threads, int zero_first, int constant,
+                              int columns)
 {
     if (n_in > MAX_IN || n_in < 1 || constant >= n_in) return -1;
     char *copy = malloc((size_t)length + 1);
@@ -93,7 +95,7 @@ int64_t jaxskid_cuda_register(const char *image, int64_t length, int n_in, const
     if (id >= 0) {
         entry *e = &table[id];
         e->image = copy, e->n_in = n_in, e->n_out = n_out, e->out_rank = out_rank, e->threads = threads;
-        e->zero_first = zero_first, e->constant = constant;
+        e->zero_first = zero_first, e->constant = constant, e->columns = columns;
         for (int i = 0; i < n_in; i++) e->size[i] = size[i], e->core[i] = core[i];
     }
     pthread_mutex_unlock(&lock);
@@ -147,15 +149,16 @@ static int64_t kernel_attribute(const XLA_FFI_CallFrame *call)
     return -1;
 }
 
-/* The job of one call: the result's leading axes are the batch; input i's leading axes broadcast against them
-   (right-aligned; an axis of 1, or a missing one, is shared: step 0). */
+/* The job of one call: the result's leading axes are the batch (by entry: the axes after its first); input
+   i's leading axes broadcast against them (right-aligned; an axis of 1, or a missing one, is shared: step 0). */
 static int job_of(const XLA_FFI_CallFrame *call, const entry *e, jaxskid_job *j)
 {
     XLA_FFI_Buffer *res = (XLA_FFI_Buffer *)call->rets.rets[0];
+    const int64_t first = e->columns ? 1 : 0;
     memset(j, 0, sizeof *j);
-    j->nb = res->rank - e->out_rank, j->batch = 1, j->out = res->data;
+    j->nb = e->columns ? res->rank - 1 : res->rank - e->out_rank, j->batch = 1, j->out = res->data;
     if (j->nb < 0 || j->nb > MAX_NB) return -1;
-    for (int64_t d = 0; d < j->nb; d++) j->dims[d] = res->dims[d], j->batch *= res->dims[d];
+    for (int64_t d = 0; d < j->nb; d++) j->dims[d] = res->dims[first + d], j->batch *= res->dims[first + d];
     for (int i = 0; i < e->n_in; i++) {
         const XLA_FFI_Buffer *b = (const XLA_FFI_Buffer *)call->args.args[i];
         if (b->dtype != res->dtype) return -1;

@@ -19,7 +19,9 @@ JAXSKID_FN double Dsign(double x) { return (double)((x > 0.0) - (x < 0.0)); }
 
 @JOB@
 @FUNCTIONS@
-/* State s: its entries of each input (the batch axes unravelled, last fastest) and its row of the result. */
+/* State s: its entries of each input (the batch axes unravelled, last fastest) and its entries of the result:
+   its row, or (by entry) its column of the result's entries by state, where neighbouring threads write
+   neighbouring addresses. */
 JAXSKID_FN void one_state(const jaxskid_job *j, long long s)
 {
     long long off[@N_IN@] = {0}, r = s;
@@ -28,7 +30,7 @@ JAXSKID_FN void one_state(const jaxskid_job *j, long long s)
         r /= j->dims[d];
         for (int i = 0; i < @N_IN@; i++) off[i] += k * j->stride[i][d];
     }
-    body(@CALL@, (io_t *)j->out + s * @N_OUT@LL);
+    body(@CALL@, @OUT@);
 }
 
 #ifdef __CUDACC_RTC__
