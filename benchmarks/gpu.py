@@ -100,10 +100,12 @@ SLOW = {("g1", "coriolis_matrix"), ("g1_hands", "coriolis_matrix"), ("g1_hands",
 """The cases whose JAX form XLA compiles for minutes on a GPU: run after every section."""
 AGREEMENT = {"z1_all": QUANTITIES, "g1": ("mass_matrix", "forward_dynamics", "regressor", "mass_matrix_dot")}
 """The quantities whose kernels ``agreement`` compares with the JAX form computed on the CPU."""
-VARIANTS = {"library trig": {"JAXSKID_CUDA_TRIG": "library"},
+FORMER = {"JAXSKID_CUDA_TRIG": "library", "JAXSKID_CUDA_LAYOUT": "rows", "JAXSKID_CUDA_ORDER": "program",
+          "JAXSKID_CUDA_CONSTANT": "0"}
+"""The settings that build the kernels as jaxskid built them before the defaults of each."""
+VARIANTS = {"library trig": {"JAXSKID_CUDA_TRIG": "library"}, "by state": {"JAXSKID_CUDA_LAYOUT": "rows"},
             "program order": {"JAXSKID_CUDA_ORDER": "program"},
-            "parameters from their input": {"JAXSKID_CUDA_CONSTANT": "0"},
-            "program order; parameters from their input": {"JAXSKID_CUDA_ORDER": "program", "JAXSKID_CUDA_CONSTANT": "0"},
+            "parameters from their input": {"JAXSKID_CUDA_CONSTANT": "0"}, "all four former": FORMER,
             "not split": {"JAXSKID_CUDA_LONG": "1000000"}}
 """The kernel builds ``variants`` measures against the default (:mod:`jaxskid.lowering._cuda`'s settings)."""
 VARIANT_QUANTITIES = ("mass_matrix", "coriolis_matrix", "inverse_dynamics")
