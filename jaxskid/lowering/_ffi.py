@@ -133,7 +133,8 @@ def _chunked(name: str, kernel: VectorKernel, vec: str, zeros: set[int] = frozen
     called. ``restrict``: the pointers are ``__restrict__`` (none aliases another), and a piece reads each value
     of an earlier piece just before its first statement that needs it, not at its top (a GPU thread's registers:
     :func:`jaxskid.lowering._cuda.thread_order`). ``stride``: the function takes ``ostride`` after ``out`` and
-    writes output ``k`` to ``out[k * ostride]`` (a GPU kernel's results by entry: :func:`jaxskid.lowering._cuda.kernel_source`)."""
+    writes output ``k`` to ``out[k * ostride]`` (a GPU kernel's results by entry:
+    :func:`jaxskid.lowering._cuda.kernel_source`)."""
     long, chunk_size = LONG if long is None else long, CHUNK if chunk_size is None else chunk_size
     ptr, star = io or vec, " *__restrict__ " if restrict else " *"
     params = ", ".join([*(f"const {ptr}{star}{a}" for a in kernel.args), f"{ptr}{star}out",

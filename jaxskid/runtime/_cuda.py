@@ -12,6 +12,7 @@ registered with the handler once per process.
 from __future__ import annotations
 
 import ctypes
+import functools
 import logging
 import os
 import threading
@@ -160,8 +161,13 @@ def cuda_call(kernel: CudaKernel, shape: tuple, args, out=None):
 _call_p = Primitive("jaxskid_cuda_call")
 
 
-def _impl(*args, kernel, shape, aliased):
-    return jax.jit(lambda *a: _call_p.bind(*a, kernel=kernel, shape=shape, aliased=aliased))(*args)
+@functools.lru_cache(maxsize=256)
+def _compiled(kernel: CudaKernel, shape: tuple, aliased: bool):
+    return jax.jit(lambda *a: _call_p.bind(*a, kernel=kernel, shape=shape, aliased=aliased))
+
+
+def _impl(*args, kernel, shape, aliased):  # a call outside any trace: compiled once per kernel and result shape
+    return _compiled(kernel, shape, aliased)(*args)
 
 
 def _abstract(*avals, kernel, shape, aliased):
