@@ -4,7 +4,7 @@ time with NVRTC, and the XLA FFI handler that launches them.
 On a GPU, XLA compiles a generated JAX program of tens of thousands of scalar operations slowly (minutes for
 the G1's Coriolis matrix) and runs a matrix's assembly as select chains. The program the CPU kernels are
 printed from (:class:`jaxskid._generated.VectorKernel`) is straight-line arithmetic; printed once more over
-doubles, it is a CUDA kernel in which each thread computes one state and writes its row of the result:
+doubles, it is a CUDA kernel in which each thread computes one state and writes its entries of the result:
 
 * :func:`kernel_source` writes that kernel (the template ``c/cuda_kernel.cu``); the same text compiles as
   C on the host (:func:`host_library`), which is how the tests check its arithmetic where no GPU is;
