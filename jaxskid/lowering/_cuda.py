@@ -114,11 +114,11 @@ def thread_order(kernel: VectorKernel) -> VectorKernel:
     for s in statements:
         if s.kind == "output":
             after.setdefault(max((position[v] for v in s.reads if v in position), default=-1), []).append(s)
-    ordered: list = []
+    order: list = []
 
     def emit(s) -> None:
-        ordered.extend(pending.pop(v) for v in s.reads if v in pending)
-        ordered.append(s)
+        order.extend(pending.pop(v) for v in s.reads if v in pending)
+        order.append(s)
 
     for s in after.get(-1, []):
         emit(s)
@@ -128,7 +128,7 @@ def thread_order(kernel: VectorKernel) -> VectorKernel:
         emit(s)
         for out in after.get(k, []):
             emit(out)
-    return kernel._replace(statements=tuple(ordered + list(pending.values())))
+    return kernel._replace(statements=tuple(order + list(pending.values())))
 
 
 def constant_parameters(kernel: VectorKernel) -> VectorKernel:
@@ -322,7 +322,8 @@ class HostJob(ctypes.Structure):
                 ("out", ctypes.c_void_p)]
 
 
-def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int, constant: int = -1, columns: bool = False) -> None:
+def run_on_host(lib: ctypes.CDLL, inputs, cores, out, out_rank: int, constant: int = -1,
+                columns: bool = False) -> None:
     """Run a :func:`host_library` kernel on contiguous NumPy arrays as the handler runs it on a GPU: ``out``'s
     leading axes (all but its last ``out_rank``) are the batch, input i's last ``cores[i]`` axes hold one
     state's entries and its leading axes broadcast against the batch (right-aligned; an axis of 1, or a missing
