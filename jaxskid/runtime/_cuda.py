@@ -86,14 +86,24 @@ class CudaKernel:
             self._ids[key] = register(self.build, image, threads, *self._layout(key[1]), str(self))
         return TARGET, {"kernel": np.int64(self._ids[key])}
 
-    def out_rank(self) -> int:
-        """The number of the result's trailing axes that hold one state's entries."""
-        return next(k for k in self.build.sources.kernels if k[0] == self.name)[4]
+    def _shape(self) -> tuple:
+        """``(sizes, cores, n_out, out_rank, zero_first)``: the entries per state of each input and the trailing
+        axes holding them, the same of the result, and whether the handler zeroes the result first."""
+        _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
+        return sizes, cores, n_out, out_rank, bool(self.build.sources.vectors[self.name].zeros)
 
     def _parameters(self) -> tuple[int, int]:
-        """``(input, size)``: which input holds the parameters, and their number."""
-        sizes = next(k for k in self.build.sources.kernels if k[0] == self.name)[1]
+        """``(input, size)``: which input holds the parameters (the last), and their number."""
+        sizes = self._shape()[0]
         return len(sizes) - 1, sizes[-1]
+
+    def out_rank(self) -> int:
+        """The number of the result's trailing axes that hold one state's entries."""
+        return self._shape()[3]
+
+    def columns(self) -> bool:
+        """Whether the kernel writes its result by entry (:func:`jaxskid._generated.by_entry`)."""
+        return by_entry(self._shape()[2])
 
     def shares(self, avals) -> bool:
         """Whether a call on inputs of types ``avals``, as lowered (batch axes included), has one set of
@@ -105,14 +115,9 @@ class CudaKernel:
         return self.build.cuda_image(self.name, dtype, architecture(), shared)
 
     def _layout(self, shared: bool) -> tuple:
-        """``(sizes, cores, n_out, out_rank, zero_first, constant, columns)`` as :func:`register` takes them."""
-        _, sizes, cores, n_out, out_rank = next(k for k in self.build.sources.kernels if k[0] == self.name)
-        return (sizes, cores, n_out, out_rank, bool(self.build.sources.vectors[self.name].zeros),
-                constant_input(*self._parameters(), shared), self.columns())
-
-    def columns(self) -> bool:
-        """Whether the kernel writes its result by entry (:func:`jaxskid._generated.by_entry`)."""
-        return by_entry(next(k for k in self.build.sources.kernels if k[0] == self.name)[3])
+        """:meth:`_shape`, the input read into constant memory (-1: none) and :meth:`columns`, as
+        :func:`register` takes them."""
+        return (*self._shape(), constant_input(*self._parameters(), shared), self.columns())
 
 
 def register(build: NativeBuild, image: bytes, threads: int, sizes, cores, n_out: int, out_rank: int,

@@ -19,8 +19,7 @@ from collections.abc import Callable
 import jax
 import jax.numpy as jnp
 
-from .._generated import (ROLLOUT_PARAMETERS, ROLLOUT_PARTS, ROLLOUT_PROGRAMS, ROLLOUT_STRIDE, constant_input,
-                          rollout_layout)
+from .._generated import ROLLOUT_PARAMETERS, ROLLOUT_PARTS, ROLLOUT_PROGRAMS, ROLLOUT_STRIDE, rollout_layout
 from ._cuda import CudaKernel, architecture
 from ._ffi import ffi_kernel, native_call, platform_kernel
 from ._forward import accelerations
@@ -41,9 +40,8 @@ class RolloutKernel(CudaKernel):
         return self.build.cuda_rollout_image(self.vectors, self.n, self.n_params, self.steps, dtype, architecture(),
                                              self.part, shared)
 
-    def _layout(self, shared: bool) -> tuple:
-        return (*rollout_layout(self.part, self.n, self.n_params, self.steps), False,
-                constant_input(*self._parameters(), shared), False)
+    def _shape(self) -> tuple:
+        return (*rollout_layout(self.part, self.n, self.n_params, self.steps), False)
 
     def columns(self) -> bool:
         return False
