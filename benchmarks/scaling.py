@@ -2,13 +2,16 @@
 
     python benchmarks/scaling.py [--robots ur5,panda,solo12,g1,g1_hands] [--batch 4096] [--repeats 7]
                                  [--quantities ...] [--plot benchmarks/out/scaling.png] [--no-floating]
-                                 [--trig auto|fused] [--markdown PATH]
+                                 [--trig auto|fused] [--cold-apart] [--markdown PATH]
 
 Robots (fixed base, from example-robot-data): UR5 (6 DOF), Panda (7, fingers locked), solo12 (12), the
 Unitree G1 (29) and the G1 with hands (43), every inertial parameter symbolic. For each robot and quantity:
 
 - ``cold``: derive + lower + compile + first call of that quantity alone, with an empty cache (generated
-  module, native library and XLA's compilation cache all in a fresh folder);
+  module, native library and XLA's compilation cache all in a fresh folder); with ``--cold-apart``, in a new
+  process on every core of the machine, whatever this one may use (XLA's code generation and a long program's
+  parts, ``jaxskid/runtime/_parts.py``, use several), so that ``taskset -c 1`` keeps the times per state
+  on one core;
 - ``jaxskid``: the median time per state of the public function on a batch (``dyn.mass_matrix(q)``,
   ``q`` of shape ``(batch, n)``, float64);
 - ``out=``: the same for a matrix-valued quantity written into an earlier result's memory
@@ -32,6 +35,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -100,8 +105,39 @@ def _pinocchio_time(fn, states: np.ndarray, repeats: int) -> float:
     return _median(loop, repeats) / count
 
 
-def measure(robot_name: str, quantities, batch: int, repeats: int, out=print, single: bool = False) -> list[dict]:
-    """The rows of one robot: per quantity, cold time, jaxskid and Pinocchio per state."""
+def cold_apart(robot_name: str, name: str, batch: int, cache: str) -> float:
+    """The cold first call of ``name`` in a new process on every core of the machine (``--cold-apart``), with
+    its generated module kept in ``cache`` for this process."""
+    def every_core():
+        try:
+            os.sched_setaffinity(0, range(os.cpu_count() or 1))
+        except OSError:  # cores this process may not use
+            pass
+
+    command = [sys.executable, __file__, "--cold-child", robot_name, name, str(batch), cache]
+    done = subprocess.run(command, capture_output=True, text=True, preexec_fn=every_core, check=False)
+    if done.returncode:
+        raise RuntimeError(f"the cold first call of {robot_name} {name} failed:\n{done.stderr[-2000:]}")
+    return float(done.stdout.split()[-1])
+
+
+def cold_child(robot_name: str, name: str, batch: int, cache: str) -> None:
+    """``--cold-child``: derive, lower, compile and call ``name`` once, and print the seconds that took."""
+    path, lock = ROBOTS[robot_name]
+    robot = jaxskid.load(ERD / path, lock=lock)
+    states = np.random.default_rng(0).uniform(-1, 1, size=(4, batch, robot.n_dof))
+    args = [jnp.asarray(s) for s in states][: STATES[name]]
+    empty_compilation_cache()
+    start = time.perf_counter()
+    dyn = jaxskid.lower(robot, [name], cache_dir=cache)
+    jax.block_until_ready(getattr(dyn, name)(*args))
+    print(f"{time.perf_counter() - start:.3f}")
+
+
+def measure(robot_name: str, quantities, batch: int, repeats: int, out=print, single: bool = False,
+            apart: bool = False) -> list[dict]:
+    """The rows of one robot: per quantity, cold time (with ``apart``, :func:`cold_apart`), jaxskid and Pinocchio
+    per state."""
     path, lock = ROBOTS[robot_name]
     robot = jaxskid.load(ERD / path, lock=lock)
     n = robot.n_dof
@@ -115,11 +151,12 @@ def measure(robot_name: str, quantities, batch: int, repeats: int, out=print, si
     for name in quantities:
         args = arrays[: STATES[name]]
         with tempfile.TemporaryDirectory() as cache:
+            cold = cold_apart(robot_name, name, batch, cache) if apart else None
             start = time.perf_counter()
             dyn = jaxskid.lower(robot, [name], cache_dir=cache)
             fn = getattr(dyn, name)
             jax.block_until_ready(fn(*args))
-            cold = time.perf_counter() - start
+            cold = time.perf_counter() - start if cold is None else cold
             dyn.native_target()  # the derivatives' library, built at a low priority meanwhile: done before timing
             ours = _median(lambda: jax.block_until_ready(fn(*args)), repeats) / batch
             matrix = len(dyn.signature(name)[1]) >= 2  # also timed written into an earlier result (out=)
@@ -221,6 +258,12 @@ def empty_compilation_cache() -> None:
     jaxskid.compilation_cache(tempfile.mkdtemp(prefix="jaxskid-xla-"))
 
 
+def _apart(apart: bool) -> str:
+    if not apart:
+        return ""
+    return f", each in a new process on the machine's {os.cpu_count()} cores (--cold-apart)"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--robots", default=",".join(ROBOTS))
@@ -237,8 +280,16 @@ def main() -> None:
     parser.add_argument("--float32", action="store_true",
                         help="also time each function on float32 states: the column float32 per state, and float64's "
                              "time over float32's (> 1: float32 is faster)")
+    parser.add_argument("--cold-apart", action="store_true",
+                        help="time each cold first call in a new process on every core of the machine, the times per "
+                             "state in this one (under taskset -c 1: on one core, as Pinocchio's loop runs)")
+    parser.add_argument("--cold-child", nargs=4, metavar=("ROBOT", "QUANTITY", "BATCH", "CACHE"),
+                        help=argparse.SUPPRESS)
     doc_tables.add_option(parser)
     args = parser.parse_args()
+    if args.cold_child:
+        robot, name, batch, cache = args.cold_child
+        return cold_child(robot, name, int(batch), cache)
     empty_compilation_cache()
     quantities = args.quantities.split(",")
     if args.trig == "fused":
@@ -253,13 +304,13 @@ def main() -> None:
     out("|---|---|---|---|---|---|---|---|" + ("---|" if args.float32 else ""))
     rows = []
     for robot in args.robots.split(","):
-        rows += measure(robot, quantities, args.batch, args.repeats, out, args.float32)
+        rows += measure(robot, quantities, args.batch, args.repeats, out, args.float32, args.cold_apart)
     native = os.environ.get("JAXSKID_NATIVE", "1")
     single = "; the float32 column: the same function on float32 states" if args.float32 else ""
     doc_tables.write(args.markdown, out, f"Batch {args.batch}, float64{single}, every inertial parameter symbolic, medians "
                      f"of {args.repeats}; Pinocchio one call from Python in the same run; cold: derive, lower, "
-                     f"compile and first call with every cache empty; JAXSKID_NATIVE={native}, sine and cosine "
-                     f"{args.trig}{_malloc()}.")
+                     f"compile and first call with every cache empty{_apart(args.cold_apart)}; "
+                     f"JAXSKID_NATIVE={native}, sine and cosine {args.trig}{_malloc()}.")
     if args.plot:
         plot(rows, args.plot)
         print(f"plot: {args.plot}")

@@ -34,6 +34,7 @@ from ._checks import check_finite, check_inputs
 from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
 from ._parameters import inexact_inputs
+from ._parts import in_parts
 from ._pullback import with_pullback
 from ._quantity import Quantity
 from ._recycle import Recycler, check_donated, check_out, recycled_result
@@ -419,6 +420,8 @@ class Dynamics(QuantitySet):
         # out (None or an earlier result) is donated, and kept though the JAX form does not read it, so that
         # XLA gives its memory to the result
         compiled = outermost(functools.partial(body, pair=True), body, donate_argnames="out", keep_unused=True)
+        if self.native_target(name) is None and _gathers(shape):  # a long one: from Python, compiled in parts
+            compiled = in_parts(self, name, compiled)
         quantity = self._quantities[name]
         takes_wrench, call = quantity.takes_wrench, quantity.call
         recycler = Recycler() if name != "forward_kinematics" else None  # jaxskid.runtime._recycle

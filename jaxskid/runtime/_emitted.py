@@ -21,6 +21,7 @@ the gathered form itself never asks it to, since its rules run above it.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -195,6 +196,52 @@ def _record(quantity: GeneratedQuantity) -> Recorded | None:
         log.debug("jaxskid: %s is traced, not recorded (%s)", quantity.name, exc)
         return None
     return Recorded(quantity, tuple(tape.ops), outputs, index, namespace["_sincos_here"])
+
+
+def operands(rec: Recorded) -> list[tuple]:
+    """For each operation of ``rec``'s tape, the positions of the operations it reads."""
+    return [(a, b) if kind in _BINARY else (a,) if kind in _UNARY else () for kind, a, b in rec.ops]
+
+
+_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def rows(quantity: GeneratedQuantity, start: int, stop: int) -> GeneratedQuantity | None:
+    """``quantity`` restricted to the rows ``[start, stop)`` of its result, for the gathered form to compute
+    apart (:mod:`jaxskid.runtime._parts`): a quantity named ``name[start:stop]`` whose tape is ``quantity``'s,
+    with the outputs those rows read, in the program's order; None where the program is not recorded. Made once
+    per range and kept as long as ``quantity`` is (a collected copy would drop an equal one's tape from
+    :data:`_RECORDED`)."""
+    rec = recorded(quantity)
+    if rec is None:
+        return None
+    made = _ROWS.setdefault(quantity, {})
+    if (start, stop) not in made:
+        width = math.prod(quantity.shape[1:])
+        index = rec.index[start * width:stop * width]
+        used = np.unique(index[index < len(rec.outputs)])
+        position = np.full(len(rec.outputs) + 1, len(used), dtype=np.int32)
+        position[used] = np.arange(len(used), dtype=np.int32)
+        made[(start, stop)] = part = dataclasses.replace(
+            quantity, name=f"{quantity.name}[{start}:{stop}]", shape=(stop - start, *quantity.shape[1:]),
+            program=_RowsProgram(quantity.program, start, stop, width))
+        _RECORDED[part] = Recorded(part, rec.ops, tuple(rec.outputs[k] for k in used), position[index],
+                                   rec.sincos)
+    return made[(start, stop)]
+
+
+class _RowsProgram:
+    """A generated program restricted to the rows ``[start, stop)`` of its result (``width`` entries each), with
+    the program's signature: what :func:`traced` and the one-state program of :func:`rows` run."""
+
+    def __init__(self, program: Callable, start: int, stop: int, width: int):
+        self.program, self.start, self.stop, self.width = program, start, stop, width
+
+    def __call__(self, *args, entries: bool = False):
+        if not entries:
+            return self.program(*args)[self.start:self.stop]
+        low, high = self.start * self.width, self.stop * self.width
+        return {k - low: v for k, v in self.program(*args, entries=True).items() if low <= k < high}
 
 
 def _identity(x):

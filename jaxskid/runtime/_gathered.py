@@ -129,10 +129,11 @@ def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> j
     return jnp.take(table, index, axis=1, mode="clip").reshape((batch, *quantity.shape))
 
 
-def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype) -> jax.Array:
+def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype, into=None, at: tuple = ()) -> jax.Array:
     """``_assembled`` of a large batch (:func:`tiled`), :data:`TILE` states at a time (module docstring): a loop
     whose every pass computes one tile and writes it into the result. The last tile ends with the batch and
-    overlaps the one before it, so that no state is padded and the result is not copied.
+    overlaps the one before it, so that no state is padded and the result is not copied. With ``into`` (a batch
+    of a larger result), the tiles are written into it at the index ``at`` of one state (:func:`rows_gathered`).
 
     A tile's table is computed in a branch of a conditional that is always taken (``k >= 0``): XLA's loop
     passes (loop-invariant code motion, constant sinking, dead-element removal) clone the loop's body each time
@@ -157,9 +158,11 @@ def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype) -> jax
 
         table = jax.lax.cond(k >= 0, computed, skipped, tile)
         part = jnp.take(table, made["index"], axis=1, mode="clip").reshape((TILE, *quantity.shape))
-        return jax.lax.dynamic_update_slice_in_dim(result, part, start, axis=0)
+        return jax.lax.dynamic_update_slice(result, part, (start, *(at or [0] * len(quantity.shape))))
 
-    return jax.lax.fori_loop(0, -(-batch // TILE), step, jnp.zeros((batch, *quantity.shape), dtype))
+    if into is None:
+        into = jnp.zeros((batch, *quantity.shape), dtype)
+    return jax.lax.fori_loop(0, -(-batch // TILE), step, into)
 
 
 def _one_state(quantity: GeneratedQuantity) -> Callable:
@@ -218,6 +221,35 @@ def gathered(quantity: GeneratedQuantity) -> Callable:
         return f(*primals), jax.jvp(single, primals, tangents)[1]
 
     return f
+
+
+def rows_gathered(part: GeneratedQuantity, row: int) -> Callable:
+    """``f(*state, p, into) -> into`` of one state, to map with ``jax.vmap``: ``into`` (a whole result of the
+    quantity that ``part`` is rows of, from row ``row`` on: :func:`jaxskid.runtime._emitted.rows`) with those
+    rows replaced by ``part``'s, computed by the gathered form (a large batch written tile by tile into
+    ``into``). It is what a call in parts runs (:mod:`jaxskid.runtime._parts`), from Python only: it has no
+    derivative rules, and real inputs only."""
+    program = jax.jit(part.single())
+    at = (row, *([0] * (len(part.shape) - 1)))
+
+    @jax.custom_batching.custom_vmap
+    def one(*args):
+        *args, into = args
+        return jax.lax.dynamic_update_slice(into, _on_host(program, part.shape, args).astype(into.dtype), at)
+
+    @one.def_vmap
+    def _mapped(size, batched, *args):
+        *args, into = args
+        *batched, into_batched = batched
+        if not into_batched:
+            into = jnp.broadcast_to(into, (size, *into.shape))
+        last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
+        dtype = jnp.result_type(*args)
+        if tiled(size, dtype, into.shape[1:]):
+            return _tiled(part, last, batched, size, dtype, into=into, at=at), True
+        return jax.lax.dynamic_update_slice(into, _assembled(part, last, size), (0, *at)), True
+
+    return one
 
 
 def padded_batch(size: int, dtype, shape: tuple = ()) -> int:
