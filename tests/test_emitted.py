@@ -6,7 +6,8 @@ helper) and a floating double pendulum (M and forward dynamics: the base's quate
 shared and in float32 with them batched, one state and a batch. The gathered form built on it is checked against
 Pinocchio in tests/test_gathered.py. Also here: a program the tape cannot record, arguments of two dtypes and
 JAXSKID_RECORD=0 are traced instead, the primitive's own evaluation, mapping and derivative agree with the
-traced program's, and its trace is one equation, not one per operation.
+traced program's, its trace is one equation, not one per operation, and given the parameters' values it reads
+them as constants.
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ def _both(dyn, name, args, lanes):
     assert found is not None
     emitted, index = found
     rec = _emitted.recorded(quantity)
-    traced = jax.jit(lambda *a: _emitted.traced_values(rec, lanes, *a))(*args)
+    traced = jax.jit(lambda *a: _emitted.traced_values(rec, lanes, None, *a))(*args)
     return emitted, traced, index
 
 
@@ -135,18 +136,47 @@ def test_evaluation_mapping_and_derivative(panda):
     rec = _emitted.recorded(quantity)
     lanes = (_gathered.LANES, 3)
     args = _arguments(panda, name, (3,), jnp.float64, False, seed=2)
-    traced = jax.jit(_emitted.traced_values, static_argnums=(0, 1))
+    traced = jax.jit(_emitted.traced_values, static_argnums=(0, 1, 2))
     eager, _ = _emitted.values(quantity, args, lanes)
-    for e, t in zip(eager, traced(rec, lanes, *args)):
+    for e, t in zip(eager, traced(rec, lanes, None, *args)):
         np.testing.assert_array_equal(e, t)
     stacked = [jnp.stack([a, 0.5 * a]) for a in args[:2]]
     mapped = jax.vmap(lambda q, qd: _emitted.values(quantity, (q, qd, args[2]), lanes)[0])(*stacked)
     for k in range(2):
-        ref = traced(rec, lanes, stacked[0][k], stacked[1][k], args[2])
+        ref = traced(rec, lanes, None, stacked[0][k], stacked[1][k], args[2])
         for m, t in zip(mapped, ref):
             np.testing.assert_allclose(m[k], t, rtol=1e-14, atol=1e-14)
     tangents = [jnp.ones_like(a) for a in args]
     _, dout = jax.jvp(lambda *a: _emitted.values(quantity, a, lanes)[0], tuple(args), tuple(tangents))
-    _, dref = jax.jvp(lambda *a: _emitted.traced_values(rec, lanes, *a), tuple(args), tuple(tangents))
+    _, dref = jax.jvp(lambda *a: _emitted.traced_values(rec, lanes, None, *a), tuple(args), tuple(tangents))
     for d, r in zip(dout, dref):
         np.testing.assert_allclose(d, r, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("name", ["coriolis_matrix", "regressor", "forward_dynamics"])
+def test_parameters_as_constants(panda, name):
+    """Given the parameters' values (a call with the defaults), the program reads them as constants and not
+    from its last argument; its entries agree with the program that reads them, and, for the gathered form of
+    a call without parameters, with one given the default vector, a batch at once and tile by tile."""
+    quantity = panda.module.quantities[name]
+    lanes = (_gathered.LANES, 3)
+    args = _arguments(panda, name, (3,), jnp.float64, False, seed=5)
+    constants = tuple(np.asarray(args[-1]).tolist())
+    read, _ = jax.jit(lambda *a: _emitted.values(quantity, a, lanes))(*args)
+    folded = jax.jit(lambda *a: _emitted.values(quantity, a, lanes, constants)[0])
+    for c, r in zip(folded(*args), read):
+        np.testing.assert_allclose(c, r, rtol=1e-14, atol=1e-14 * float(jnp.abs(r).max()))
+    for c, r in zip(folded(*args[:-1], jnp.zeros_like(args[-1])), read):  # the argument is not read
+        np.testing.assert_allclose(c, r, rtol=1e-14, atol=1e-14 * float(jnp.abs(r).max()))
+    states = [jnp.moveaxis(a, -1, 0) for a in args[:-1]]
+    defaults = getattr(panda, name)(*states)
+    given = getattr(panda, name)(*states, params=panda.param_vector())
+    np.testing.assert_allclose(defaults, given, rtol=1e-13, atol=1e-13 * float(jnp.abs(given).max()))
+    five = [jnp.moveaxis(a, -1, 0) for a in _arguments(panda, name, (5,), jnp.float64, False, seed=6)[:-1]]
+    given = getattr(panda, name)(*five, params=panda.param_vector())
+    with pytest.MonkeyPatch.context() as mp:  # five states (a shape not traced before) in tiles of two
+        mp.setattr(_gathered, "TILE", 2)
+        mp.setattr(_gathered, "TILED_BYTES", 0)
+        tiled = jax.jit(lambda *s: jax.vmap(panda.mapped(name, defaults=True), in_axes=(0,) * len(s) + (None,))(
+            *s, panda.param_vector()))(*five)
+    np.testing.assert_allclose(tiled, given, rtol=1e-13, atol=1e-13 * float(jnp.abs(given).max()))

@@ -29,14 +29,14 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.custom_batching import custom_vmap
 
-from .._errors import InputError, RequestError
+from .._errors import InputError, RequestError, ShapeError
 from ._jit import top_level
 
 CHECKS = (True, False, "debug")
@@ -236,3 +236,15 @@ def _rotational(six: np.ndarray) -> np.ndarray:
     """``(Ixx, Ixy, Iyy, Ixz, Iyz, Izz)`` as symmetric 3x3 matrices."""
     xx, xy, yy, xz, yz, zz = (six[..., k] for k in range(6))
     return np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], -2)
+
+
+def check_not_a_wrench(name: str, params, call: str, n_ee: int, n_params: int) -> None:
+    """A 4th positional argument of the shape of the wrenches of ``n_ee`` end-effectors, where a parameter vector
+    is expected: the wrench goes by keyword, and the error says so (rather than that the parameters have a wrong
+    shape)."""
+    shape = getattr(params, "shape", None)
+    if shape is None and not isinstance(params, Mapping):
+        shape = np.shape(params) if isinstance(params, (list, tuple)) else None
+    if shape is not None and len(shape) >= 2 and tuple(shape[-2:]) == (n_ee, 6) and shape[-1] != n_params:
+        raise ShapeError(f"{name}: params has the shape of the end-effector wrenches {tuple(shape)}; pass "
+                         f"a wrench by keyword: {call}")

@@ -12,7 +12,7 @@ gives the result its memory (donated: deleted after the call), so a large batch 
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -30,7 +30,7 @@ from ._constrained import constrained_forward_dynamics, constrained_inverse_dyna
 from ._deferred import Deferred, OnDemand
 from ._forward import accelerations, forward_dynamics
 from ._gathered import gathered, padded_batch
-from ._checks import check_finite, check_inputs
+from ._checks import check_finite, check_inputs, check_not_a_wrench
 from ._jit import compiler_options, jit, outermost, top_level  # noqa: F401  (compiler_options, jit: imported from here too)
 from ._ldl import materialize
 from ._parameters import inexact_inputs
@@ -364,7 +364,7 @@ class Dynamics(QuantitySet):
             if name in self._rules:  # differentiated without tracing the JAX form's value
                 raw, plain = self._rules[name](raw_out), self._rules[name](plain_out)
         # an array of the JAX form on CPU: the gathered form, for a batch (jaxskid.runtime._gathered)
-        gather = native is None and _gathers(shape)
+        gather = native is None and _gathers(shape)  # the default parameters as constants: self.mapped
         if gather:
             raw = self.mapped(name)
         cores = {a: self.argument_shape(a) for a in args}
@@ -392,7 +392,8 @@ class Dynamics(QuantitySet):
             if not batch:
                 return plain(*arrays, p)
             pad = functools.partial(padded_batch, dtype=dtype, shape=shape) if gather else None
-            return vmapped(raw, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)], pad)
+            fn = self.mapped(name, defaults=True) if gather and params is None else raw
+            return vmapped(fn, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)], pad)
 
         if name != "forward_kinematics":
             return call
@@ -404,15 +405,17 @@ class Dynamics(QuantitySet):
 
         return call_fk
 
-    def mapped(self, name: str) -> Callable:
+    def mapped(self, name: str, defaults: bool = False) -> Callable:
         """``generated(name)``, the function of one state to map with ``jax.vmap``; on CPU, for an array, its
-        gathered form with the quantity's derivative rules (:mod:`jaxskid.runtime._gathered`)."""
+        gathered form with the quantity's derivative rules (:mod:`jaxskid.runtime._gathered`). ``defaults``:
+        for the default parameters, which the gathered form then compiles as constants (``p`` is not read)."""
         if not _gathers(self.signature(name)[1]):
             return self.generated(name)
-        if name not in self._gathered:
-            fn = gathered(self.module.quantities[name])
-            self._gathered[name] = _traced_once(self._rules[name](fn) if name in self._rules else fn, name)
-        return self._gathered[name]
+        if (name, defaults) not in self._gathered:
+            constants = tuple(np.asarray(self.packed_params(None), dtype=float).tolist()) if defaults else None
+            fn = gathered(self.module.quantities[name], constants)
+            self._gathered[name, defaults] = _traced_once(self._rules[name](fn) if name in self._rules else fn, name)
+        return self._gathered[name, defaults]
 
     def _make(self, name: str) -> Callable:
         args, shape = self.signature(name)
@@ -438,7 +441,7 @@ class Dynamics(QuantitySet):
             if wrench is not None and not takes_wrench:
                 raise ShapeError(f"{name} takes no wrench; expected {call}")
             if takes_wrench and params is not None:
-                self._check_not_a_wrench(name, params, call)
+                check_not_a_wrench(name, params, call, len(self.end_effectors), len(self.parameters))
             outside = top_level(state)
             if self.checks and outside:
                 check_finite(name, zip(args, state))
@@ -463,17 +466,6 @@ class Dynamics(QuantitySet):
 
         fn.__name__ = name
         return fn
-
-    def _check_not_a_wrench(self, name: str, params, call: str) -> None:
-        """A 4th positional argument of the shape of the wrenches, where a parameter vector is expected: the
-        wrench goes by keyword, and the error says so (rather than that the parameters have a wrong shape)."""
-        shape = getattr(params, "shape", None)
-        if shape is None and not isinstance(params, Mapping):
-            shape = np.shape(params) if isinstance(params, (list, tuple)) else None
-        n_ee, n_params = len(self.end_effectors), len(self.parameters)
-        if shape is not None and len(shape) >= 2 and tuple(shape[-2:]) == (n_ee, 6) and shape[-1] != n_params:
-            raise ShapeError(f"{name}: params has the shape of the end-effector wrenches {tuple(shape)}; pass "
-                             f"a wrench by keyword: {call}")
 
     def forward_dynamics(self, q, qd, tau, params=None, *, wrench=None):
         """``qdd = M(q)^-1 (tau - C(q, qd) qd - Q_grav(q) - Q_ext)``.

@@ -99,14 +99,15 @@ def _maximum(x: tuple, y: tuple) -> tuple:
     return tuple(jax.lax.max(a, b) for a, b in zip(x, y))
 
 
-def _table(quantity: GeneratedQuantity, args, batch: int | None = None) -> tuple[jax.Array, np.ndarray]:
+def _table(quantity: GeneratedQuantity, args, batch: int | None = None,
+           constants: tuple | None = None) -> tuple[jax.Array, np.ndarray]:
     """``(table, index)``: steps 1 and 2 of the gathered form (module docstring) on one state, or with ``batch``
     on a batch whose arrays carry it on their last axis (the program reads an entry as a vector of the batch),
     and the constant index of step 3. The program's entries are written into the lowered module from its
     recording (:mod:`jaxskid.runtime._emitted`), or traced where it has none."""
     dtype = jnp.result_type(*args)
     lanes_shape = (LANES,) if batch is None else (LANES, batch)
-    lanes, index = recorded_values(quantity, args, lanes_shape) or traced(quantity, args, lanes_shape)
+    lanes, index = recorded_values(quantity, args, lanes_shape, constants) or traced(quantity, args, lanes_shape)
     staged = len(lanes) > STAGED * CHUNK
     columns = []  # each chunk's columns of the table (module docstring, step 2)
     for start in range(0, len(lanes), CHUNK):
@@ -120,16 +121,18 @@ def _table(quantity: GeneratedQuantity, args, batch: int | None = None) -> tuple
     return jnp.concatenate([*columns, jnp.zeros((*lanes_shape[1:], 1), dtype)], axis=-1), index
 
 
-def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None) -> jax.Array:
+def _assembled(quantity: GeneratedQuantity, args, batch: int | None = None,
+               constants: tuple | None = None) -> jax.Array:
     """The result of ``quantity``'s program by the gathered form (module docstring): on one state, or with
     ``batch``, on a batch whose arrays carry it on their last axis, the result's batch first."""
-    table, index = _table(quantity, args, batch)
+    table, index = _table(quantity, args, batch, constants)
     if batch is None:
         return jnp.take(table, index, mode="clip").reshape(quantity.shape)
     return jnp.take(table, index, axis=1, mode="clip").reshape((batch, *quantity.shape))
 
 
-def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype, into=None, at: tuple = ()) -> jax.Array:
+def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype, into=None, at: tuple = (),
+           constants: tuple | None = None) -> jax.Array:
     """``_assembled`` of a large batch (:func:`tiled`), :data:`TILE` states at a time (module docstring): a loop
     whose every pass computes one tile and writes it into the result. The last tile ends with the batch and
     overlaps the one before it, so that no state is padded and the result is not copied. With ``into`` (a batch
@@ -149,7 +152,7 @@ def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype, into=N
         made = {}
 
         def computed(t):
-            made["table"], made["index"] = _table(quantity, t, TILE)
+            made["table"], made["index"] = _table(quantity, t, TILE, constants)
             return made["table"]
 
         def skipped(t):  # never taken; its zeros take the table's shape from the branch traced first
@@ -165,7 +168,7 @@ def _tiled(quantity: GeneratedQuantity, args, batched, batch: int, dtype, into=N
     return jax.lax.fori_loop(0, -(-batch // TILE), step, into)
 
 
-def _one_state(quantity: GeneratedQuantity) -> Callable:
+def _one_state(quantity: GeneratedQuantity, constants: tuple | None = None) -> Callable:
     """``_assembled`` of one state, which ``jax.vmap`` maps by tracing the program once on vectors of the batch
     (``custom_vmap``) instead of through its batching of every scalar operation: the G1's Coriolis matrix
     (27,000 operations) traced in 3.0 s and lowered to XLA in 0.35 s so, in 3.6 s and 2.5 s through ``vmap``.
@@ -186,8 +189,8 @@ def _one_state(quantity: GeneratedQuantity) -> Callable:
         last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
         dtype = jnp.result_type(*args)
         if tiled(size, dtype, quantity.shape):
-            return _tiled(quantity, last, batched, size, dtype), True
-        return _assembled(quantity, last, size), True
+            return _tiled(quantity, last, batched, size, dtype, constants=constants), True
+        return _assembled(quantity, last, size, constants), True
 
     return one
 
@@ -204,11 +207,13 @@ def _on_host(program: Callable, shape: tuple, args) -> jax.Array:
     return jnp.where(True, result, sum(jnp.sum(a) for a in args).astype(result.dtype))
 
 
-def gathered(quantity: GeneratedQuantity) -> Callable:
+def gathered(quantity: GeneratedQuantity, constants: tuple | None = None) -> Callable:
     """``f(*state, p)`` of one state, to map with ``jax.vmap``: ``quantity``'s program by the gathered form,
     differentiated in forward mode through the program on unbroadcast values (:meth:`GeneratedQuantity.single`),
-    as the generated function is. The generated function serves complex inputs: ``max`` has no order on them."""
-    single, one = quantity.single(), _one_state(quantity)
+    as the generated function is. The generated function serves complex inputs: ``max`` has no order on them.
+    With ``constants`` (the values of ``p``, which is then not read: the defaults of a call without parameters),
+    the parameters are constants of the compiled program (:func:`jaxskid.runtime._emitted.values`)."""
+    single, one = quantity.single(), _one_state(quantity, constants)
 
     @jax.custom_jvp
     def f(*args):
@@ -223,12 +228,12 @@ def gathered(quantity: GeneratedQuantity) -> Callable:
     return f
 
 
-def rows_gathered(part: GeneratedQuantity, row: int) -> Callable:
+def rows_gathered(part: GeneratedQuantity, row: int, constants: tuple | None = None) -> Callable:
     """``f(*state, p, into) -> into`` of one state, to map with ``jax.vmap``: ``into`` (a whole result of the
     quantity that ``part`` is rows of, from row ``row`` on: :func:`jaxskid.runtime._emitted.rows`) with those
     rows replaced by ``part``'s, computed by the gathered form (a large batch written tile by tile into
     ``into``). It is what a call in parts runs (:mod:`jaxskid.runtime._parts`), from Python only: it has no
-    derivative rules, and real inputs only."""
+    derivative rules, and real inputs only. ``constants``: as for :func:`gathered`."""
     program = jax.jit(part.single())
     at = (row, *([0] * (len(part.shape) - 1)))
 
@@ -246,8 +251,8 @@ def rows_gathered(part: GeneratedQuantity, row: int) -> Callable:
         last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
         dtype = jnp.result_type(*args)
         if tiled(size, dtype, into.shape[1:]):
-            return _tiled(part, last, batched, size, dtype, into=into, at=at), True
-        return jax.lax.dynamic_update_slice(into, _assembled(part, last, size), (0, *at)), True
+            return _tiled(part, last, batched, size, dtype, into=into, at=at, constants=constants), True
+        return jax.lax.dynamic_update_slice(into, _assembled(part, last, size, constants), (0, *at)), True
 
     return one
 
