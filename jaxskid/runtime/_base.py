@@ -172,6 +172,11 @@ class QuantitySet:
         """
         return param_array(self.layout, self.packed_params(params), dtype)
 
+    def default_constants(self) -> tuple[float, ...]:
+        """The default parameter vector as a tuple of floats: what the gathered form compiles as constants for
+        a call without parameters (:func:`jaxskid.runtime._emitted.values`)."""
+        return tuple(np.asarray(self.packed_params(None), dtype=float).tolist())
+
     def packed_params(self, params, where: str = "params"):
         """``params`` ready to pass to a jitted function, converted there by :func:`param_array`.
 

@@ -364,7 +364,7 @@ class Dynamics(QuantitySet):
             if name in self._rules:  # differentiated without tracing the JAX form's value
                 raw, plain = self._rules[name](raw_out), self._rules[name](plain_out)
         # an array of the JAX form on CPU: the gathered form, for a batch (jaxskid.runtime._gathered)
-        gather = native is None and _gathers(shape)  # the default parameters as constants: self.mapped
+        gather = native is None and _gathers(shape)
         if gather:
             raw = self.mapped(name)
         cores = {a: self.argument_shape(a) for a in args}
@@ -392,7 +392,7 @@ class Dynamics(QuantitySet):
             if not batch:
                 return plain(*arrays, p)
             pad = functools.partial(padded_batch, dtype=dtype, shape=shape) if gather else None
-            fn = self.mapped(name, defaults=True) if gather and params is None else raw
+            fn = self.mapped(name, defaults=True) if gather and params is None else raw  # defaults: constants
             return vmapped(fn, batch, [*((x, len(cores[a])) for a, x in zip(args, arrays)), (p, 1)], pad)
 
         if name != "forward_kinematics":
@@ -412,8 +412,7 @@ class Dynamics(QuantitySet):
         if not _gathers(self.signature(name)[1]):
             return self.generated(name)
         if (name, defaults) not in self._gathered:
-            constants = tuple(np.asarray(self.packed_params(None), dtype=float).tolist()) if defaults else None
-            fn = gathered(self.module.quantities[name], constants)
+            fn = gathered(self.module.quantities[name], self.default_constants() if defaults else None)
             self._gathered[name, defaults] = _traced_once(self._rules[name](fn) if name in self._rules else fn, name)
         return self._gathered[name, defaults]
 

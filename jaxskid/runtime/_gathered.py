@@ -186,13 +186,22 @@ def _one_state(quantity: GeneratedQuantity, constants: tuple | None = None) -> C
 
     @one.def_vmap
     def _mapped(size, batched, *args):
-        last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
-        dtype = jnp.result_type(*args)
-        if tiled(size, dtype, quantity.shape):
-            return _tiled(quantity, last, batched, size, dtype, constants=constants), True
-        return _assembled(quantity, last, size, constants), True
+        return _batch(quantity, size, batched, args, constants), True
 
     return one
+
+
+def _batch(quantity: GeneratedQuantity, size: int, batched, args, constants: tuple | None, into=None,
+           at: tuple = ()) -> jax.Array:
+    """The gathered form of ``size`` states, as a ``custom_vmap`` rule receives them (``args`` with the batch first
+    where ``batched``): a tile at a time where the result is large (:func:`tiled`), else at once; with ``into``
+    (a batch of a larger result), written into it at the index ``at`` of one state."""
+    last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
+    dtype = jnp.result_type(*args)
+    if tiled(size, dtype, quantity.shape if into is None else into.shape[1:]):
+        return _tiled(quantity, last, batched, size, dtype, into=into, at=at, constants=constants)
+    result = _assembled(quantity, last, size, constants)
+    return result if into is None else jax.lax.dynamic_update_slice(into, result, (0, *at))
 
 
 def _on_host(program: Callable, shape: tuple, args) -> jax.Array:
@@ -248,11 +257,7 @@ def rows_gathered(part: GeneratedQuantity, row: int, constants: tuple | None = N
         *batched, into_batched = batched
         if not into_batched:
             into = jnp.broadcast_to(into, (size, *into.shape))
-        last = [jnp.moveaxis(a, 0, -1) if b else a for a, b in zip(args, batched)]
-        dtype = jnp.result_type(*args)
-        if tiled(size, dtype, into.shape[1:]):
-            return _tiled(part, last, batched, size, dtype, into=into, at=at, constants=constants), True
-        return jax.lax.dynamic_update_slice(into, _assembled(part, last, size, constants), (0, *at)), True
+        return _batch(part, size, batched, args, constants, into, at), True
 
     return one
 

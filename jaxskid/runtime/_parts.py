@@ -139,8 +139,7 @@ def in_parts(dyn, name: str, whole: Callable) -> Callable:
 
         def body(*state, params=None, into=None):
             arrays, p, dtype = inexact_inputs(dyn.layout, state, params)
-            constants = None if params is not None else tuple(np.asarray(dyn.packed_params(None), float).tolist())
-            fn = rows_gathered(part, start, constants)  # the default parameters as constants (jaxskid.runtime._emitted)
+            fn = rows_gathered(part, start, dyn.default_constants() if params is None else None)
             batch = batch_shape(name, [(a, x.shape, dyn.argument_shape(a)) for a, x in zip(args, arrays)],
                                 [("params", p.shape, n_params)])
             if first:  # into: the caller's out, donated, whose memory XLA gives to the result
